@@ -1,0 +1,18 @@
+//! `hexapod-core`: the single definition of the robot and the `no_std` controller core.
+//!
+//! Everything that the simulator, the trainer, the code generator and the firmware must
+//! agree on lives here, once: joint order and names, leg geometry, nominal pose, limits,
+//! tripod sets, CAN node ids, timing, and the observation layouts (index ranges, scales,
+//! noise). The crate builds for `thumbv7em-none-eabihf` without `std` and is unit-tested
+//! on the host.
+#![cfg_attr(not(any(test, feature = "std")), no_std)]
+#![warn(missing_docs)]
+
+pub mod amp;
+pub mod kinematics;
+pub mod nets;
+pub mod obs;
+pub mod robot;
+pub mod timing;
+
+pub use robot::{Joint, Leg, NUM_JOINTS, NUM_LEGS};

@@ -1,0 +1,51 @@
+//! The narrow seam between simulator and learner, in the manner of rsl_rl's `VecEnv`.
+//!
+//! Every buffer is row-major `[num_envs, dim]` in one flat `Vec<f32>`; the dimensions come
+//! from `hexapod_core::obs` and `hexapod_core::amp`. Actions are `[num_envs, 18]` in joint
+//! order, unscaled policy outputs (`q_d = q0 + ACTION_SCALE_RAD * a`).
+
+/// Observations of all robots after a reset or a step.
+#[derive(Clone, Debug, Default)]
+pub struct Observations {
+    /// Actor observation `[N, 63]`: command, previous action, o^p (with noise).
+    pub actor: Vec<f32>,
+    /// Proprioceptive history `[N, 210]`, oldest first (with noise).
+    pub history: Vec<f32>,
+    /// Privileged state s^p `[N, 42]` (critic only, noise free).
+    pub privileged: Vec<f32>,
+    /// Terrain heights i^e `[N, 187]` (critic only).
+    pub heights: Vec<f32>,
+    /// AMP state `[N, 61]` of the current instant (noise free).
+    pub amp: Vec<f32>,
+}
+
+/// What one policy step returns.
+#[derive(Clone, Debug, Default)]
+pub struct StepResult {
+    /// Observations after the step (after the reset, for robots that were reset).
+    pub obs: Observations,
+    /// Task and regularization reward `[N]` (the style reward is the learner's: it owns
+    /// the discriminator).
+    pub rewards: Vec<f32>,
+    /// `[N]` true where the episode ended (termination or time-out) and the robot was reset.
+    pub dones: Vec<bool>,
+    /// `[N]` true where the episode ended by time-out only (bootstrap the value).
+    pub time_outs: Vec<bool>,
+    /// AMP state `[N, 61]` reached by this step, taken before any reset: with the previous
+    /// step's `obs.amp` it forms the policy transition (s_t, s_t+1) the discriminator sees.
+    pub amp_next: Vec<f32>,
+    /// `[N]` true where the actions contained NaN or infinity (those robots were reset).
+    pub invalid_actions: Vec<bool>,
+    /// Episode statistics of robots that finished an episode in this step.
+    pub episode_log: Vec<(String, f32)>,
+}
+
+/// A batch of simulated robots.
+pub trait VecEnv {
+    /// Number of robots.
+    fn num_envs(&self) -> usize;
+    /// Resets all robots and returns their observations.
+    fn reset(&mut self) -> Observations;
+    /// Applies `actions` (`[N, 18]`) for one policy step (decimation physics steps).
+    fn step(&mut self, actions: &[f32]) -> StepResult;
+}

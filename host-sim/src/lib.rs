@@ -1,0 +1,8 @@
+//! `host-sim`: the rapier3d simulator of the hexapod.
+//!
+//! Robots are loaded from `assets/hexapod.urdf` as rapier multibodies; the joint drives
+//! apply the CSP law of `hexapod_core::timing` at the physics rate. [`vec_env::VecEnv`] is
+//! the seam to the learner.
+#![warn(missing_docs)]
+
+pub mod vec_env;

@@ -1,0 +1,1 @@
+//! Subcommands of the `hexapod` binary, one file each.

@@ -11,6 +11,7 @@
 pub mod amp;
 pub mod kinematics;
 pub mod nets;
+pub mod nn;
 pub mod obs;
 pub mod robot;
 pub mod timing;

@@ -5,4 +5,7 @@
 //! the seam to the learner.
 #![warn(missing_docs)]
 
+pub mod robot;
+pub mod terrain;
+pub mod urdf_model;
 pub mod vec_env;

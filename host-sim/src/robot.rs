@@ -1,0 +1,444 @@
+//! One simulated robot in its own rapier world: the URDF multibody on the ground, the
+//! joint drives (CSP law at the physics rate), state read-out, contacts and collisions.
+//!
+//! Solver contacts are made only by the feet. Trunk, thigh and shank colliders are sensors:
+//! they report touching the ground (collision flags, penalties, trunk termination) without
+//! entering the contact solver, which keeps a step cheap.
+
+use crate::urdf_model::UrdfModel;
+use hexapod_core::robot::{JOINT_NAMES, NUM_JOINTS, NUM_LEGS, TORQUE_LIMIT_NM, VELOCITY_LIMIT_RAD_S};
+use hexapod_core::timing::{csp_torque_nm, CSP_KP1_PER_S, CSP_KP2_NMS_PER_RAD, PHYSICS_DT_S};
+use rapier3d::prelude::*;
+use rapier3d_urdf::{UrdfLoaderOptions, UrdfMultibodyOptions, UrdfRobot};
+
+/// Per-robot physical parameters that domain randomization changes.
+#[derive(Clone, Debug)]
+pub struct DriveParams {
+    /// Position loop gain per joint, 1/s.
+    pub kp1_per_s: [f32; NUM_JOINTS],
+    /// Velocity loop gain per joint, N m s/rad.
+    pub kp2_nms_per_rad: [f32; NUM_JOINTS],
+    /// Motor strength factor per joint.
+    pub motor_strength: [f32; NUM_JOINTS],
+}
+
+impl Default for DriveParams {
+    fn default() -> Self {
+        Self {
+            kp1_per_s: [CSP_KP1_PER_S; NUM_JOINTS],
+            kp2_nms_per_rad: [CSP_KP2_NMS_PER_RAD; NUM_JOINTS],
+            motor_strength: [1.0; NUM_JOINTS],
+        }
+    }
+}
+
+/// The kinematic state of the robot.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RobotState {
+    /// Base position, world, m.
+    pub base_pos_world_m: [f32; 3],
+    /// Base orientation, world, quaternion (x, y, z, w).
+    pub base_quat_xyzw: [f32; 4],
+    /// Base linear velocity, world, m/s.
+    pub base_lin_vel_world_m_s: [f32; 3],
+    /// Base angular velocity, world, rad/s.
+    pub base_ang_vel_world_rad_s: [f32; 3],
+    /// Joint angles, rad.
+    pub q_rad: [f32; NUM_JOINTS],
+    /// Joint velocities, rad/s.
+    pub qdot_rad_s: [f32; NUM_JOINTS],
+}
+
+/// Contacts and collisions after a physics step.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ContactState {
+    /// Ground reaction force on each foot, world, N (normal part).
+    pub foot_force_world_n: [[f32; 3]; NUM_LEGS],
+    /// Trunk touches the ground.
+    pub trunk: bool,
+    /// Each thigh touches the ground.
+    pub thighs: [bool; NUM_LEGS],
+    /// Each shank (above the foot) touches the ground.
+    pub shanks: [bool; NUM_LEGS],
+}
+
+/// A robot in its own physics world.
+pub struct RobotWorld {
+    world: PhysicsWorld,
+    base: RigidBodyHandle,
+    link_of_joint: [usize; NUM_JOINTS],
+    dof_of_joint: [usize; NUM_JOINTS],
+    child_body: [RigidBodyHandle; NUM_JOINTS],
+    parent_body: [RigidBodyHandle; NUM_JOINTS],
+    axis_local: [Vector; NUM_JOINTS],
+    feet: [ColliderHandle; NUM_LEGS],
+    thighs: [ColliderHandle; NUM_LEGS],
+    shanks: [ColliderHandle; NUM_LEGS],
+    trunk: ColliderHandle,
+    ground: ColliderHandle,
+    /// Drive parameters (randomized per episode in training).
+    pub drives: DriveParams,
+    /// Last applied joint torques, N m.
+    pub torque_nm: [f32; NUM_JOINTS],
+}
+
+/// Why a robot world could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum BuildError {
+    /// The URDF does not have the structure the simulator expects.
+    #[error("{path}: {message}")]
+    Structure {
+        /// The URDF file.
+        path: String,
+        /// What is missing.
+        message: String,
+    },
+}
+
+impl RobotWorld {
+    /// Builds a world with `ground` and the robot of `model`, standing at the nominal pose.
+    pub fn new(model: &UrdfModel, ground: Collider, solver_iterations: usize) -> Result<Self, BuildError> {
+        let structure = |message: String| BuildError::Structure {
+            path: model.path.display().to_string(),
+            message,
+        };
+        let mut world = PhysicsWorld::new();
+        world.gravity = Vector::new(0.0, 0.0, -9.81);
+        world.integration_parameters.dt = PHYSICS_DT_S;
+        world.integration_parameters.num_solver_iterations = solver_iterations;
+        let ground = world.colliders.insert(ground);
+
+        let options = UrdfLoaderOptions {
+            enable_joint_collisions: false,
+            ..Default::default()
+        };
+        let urdf = UrdfRobot::from_robot(&model.robot, options, std::path::Path::new("."));
+        let handles = urdf.insert_using_multibody_joints(
+            &mut world.bodies,
+            &mut world.colliders,
+            &mut world.multibody_joints,
+            UrdfMultibodyOptions::DISABLE_SELF_CONTACTS,
+        );
+        let link_index = |name: &str| model.robot.links.iter().position(|l| l.name == name);
+        let base_link = link_index("base").ok_or_else(|| structure("no link `base`".into()))?;
+        let base = handles.links[base_link].body;
+        let trunk = *handles.links[base_link]
+            .colliders
+            .first()
+            .map(|c| &c.handle)
+            .ok_or_else(|| structure("link `base` has no collision shape".into()))?;
+
+        let mut child_body = [base; NUM_JOINTS];
+        let mut parent_body = [base; NUM_JOINTS];
+        let mut axis_local = [Vector::X; NUM_JOINTS];
+        let mut feet = [trunk; NUM_LEGS];
+        let mut thighs = [trunk; NUM_LEGS];
+        let mut shanks = [trunk; NUM_LEGS];
+        for (j, name) in JOINT_NAMES.iter().enumerate() {
+            let ji = model.robot.joints.iter().position(|jt| jt.name == *name).ok_or_else(|| structure(format!("no joint `{name}`")))?;
+            let h = &handles.joints[ji];
+            child_body[j] = h.link2;
+            parent_body[j] = h.link1;
+            let axis = &model.robot.joints[ji].axis.xyz;
+            axis_local[j] = Vector::new(axis[0] as f32, axis[1] as f32, axis[2] as f32);
+        }
+        for leg in 0..NUM_LEGS {
+            let thigh_link = &handles.links[link_index(&format!("{}_thigh", hexapod_core::robot::LEG_NAMES[leg])).ok_or_else(|| structure(format!("no thigh link for leg {leg}")))?];
+            let shank_link = &handles.links[link_index(&format!("{}_shank", hexapod_core::robot::LEG_NAMES[leg])).ok_or_else(|| structure(format!("no shank link for leg {leg}")))?];
+            thighs[leg] = thigh_link.colliders.first().map(|c| c.handle).ok_or_else(|| structure(format!("leg {leg}: thigh has no collision shape")))?;
+            let mut foot = None;
+            let mut shank = None;
+            for c in &shank_link.colliders {
+                if world.colliders[c.handle].shape().as_ball().is_some() {
+                    foot = Some(c.handle);
+                } else {
+                    shank = Some(c.handle);
+                }
+            }
+            feet[leg] = foot.ok_or_else(|| structure(format!("leg {leg}: shank has no foot sphere")))?;
+            shanks[leg] = shank.ok_or_else(|| structure(format!("leg {leg}: shank has no cylinder")))?;
+        }
+        // Only feet enter the contact solver.
+        for handle in std::iter::once(trunk).chain(thighs).chain(shanks) {
+            world.colliders[handle].set_sensor(true);
+        }
+        for handle in feet {
+            let c = &mut world.colliders[handle];
+            c.set_friction(1.0);
+            c.set_friction_combine_rule(CoefficientCombineRule::Multiply);
+            c.set_restitution(0.0);
+        }
+
+        // Map joints to multibody links and generalized coordinates; set armature.
+        let link_id = world.multibody_joints.rigid_body_link(base).ok_or_else(|| structure("base is not in a multibody".into()))?;
+        let mb_index = link_id.multibody;
+        let mut link_of_joint = [0; NUM_JOINTS];
+        let mut dof_of_joint = [0; NUM_JOINTS];
+        {
+            let mb = world.multibody_joints.get_multibody_mut(mb_index).ok_or_else(|| structure("no multibody".into()))?;
+            for j in 0..NUM_JOINTS {
+                let link = mb.links().position(|l| l.rigid_body_handle() == child_body[j]).ok_or_else(|| structure(format!("joint {} not in multibody", JOINT_NAMES[j])))?;
+                link_of_joint[j] = link;
+                dof_of_joint[j] = mb.link(link).map(|l| l.assembly_id()).unwrap_or(0);
+            }
+            for j in 0..NUM_JOINTS {
+                mb.armature_mut()[dof_of_joint[j]] = model.armature_kg_m2;
+                mb.damping_mut()[dof_of_joint[j]] = 0.0;
+            }
+        }
+        let mut robot = Self {
+            world,
+            base,
+            link_of_joint,
+            dof_of_joint,
+            child_body,
+            parent_body,
+            axis_local,
+            feet,
+            thighs,
+            shanks,
+            trunk,
+            ground,
+            drives: DriveParams::default(),
+            torque_nm: [0.0; NUM_JOINTS],
+        };
+        robot.reset(
+            [0.0, 0.0, 0.35],
+            [0.0, 0.0, 0.0, 1.0],
+            &hexapod_core::robot::Q0_RAD,
+        );
+        Ok(robot)
+    }
+
+    fn multibody(&self) -> &Multibody {
+        let link = self.world.multibody_joints.rigid_body_link(self.base).expect("base is a multibody root");
+        self.world.multibody_joints.get_multibody(link.multibody).expect("multibody exists")
+    }
+
+    fn multibody_mut(&mut self) -> &mut Multibody {
+        let link = *self.world.multibody_joints.rigid_body_link(self.base).expect("base is a multibody root");
+        self.world.multibody_joints.get_multibody_mut(link.multibody).expect("multibody exists")
+    }
+
+    /// Places the robot: base pose (world) and joint angles, all velocities zero.
+    pub fn reset(&mut self, base_pos_world_m: [f32; 3], base_quat_xyzw: [f32; 4], q_rad: &[f32; NUM_JOINTS]) {
+        let target_rot = Rotation::from_xyzw(base_quat_xyzw[0], base_quat_xyzw[1], base_quat_xyzw[2], base_quat_xyzw[3]).normalize();
+        let link_of_joint = self.link_of_joint;
+        let dof_of_joint = self.dof_of_joint;
+        let mb = self.multibody_mut();
+        let ndofs = mb.ndofs();
+        let mut disp = vec![0.0; ndofs];
+        let root = mb.root().joint();
+        let coords = root.coords();
+        let cur_rot = root.joint_rot();
+        for k in 0..3 {
+            disp[k] = base_pos_world_m[k] - coords[k];
+        }
+        let delta = (target_rot * cur_rot.inverse()).to_scaled_axis();
+        disp[3] = delta.x;
+        disp[4] = delta.y;
+        disp[5] = delta.z;
+        for j in 0..NUM_JOINTS {
+            let angle = mb.link(link_of_joint[j]).map(|l| l.joint().coords()[3]).unwrap_or(0.0);
+            disp[dof_of_joint[j]] = q_rad[j] - angle;
+        }
+        mb.apply_displacements(&disp);
+        mb.generalized_velocity_mut().fill(0.0);
+        let world = &mut self.world;
+        let link = *world.multibody_joints.rigid_body_link(self.base).expect("root");
+        let mb = world.multibody_joints.get_multibody_mut(link.multibody).expect("multibody");
+        mb.forward_kinematics(&world.bodies, false);
+        mb.update_rigid_bodies(&mut world.bodies, true);
+        let handles: Vec<RigidBodyHandle> = mb.links().map(|l| l.rigid_body_handle()).collect();
+        for h in handles {
+            let rb = &mut world.bodies[h];
+            rb.set_linvel(Vector::ZERO, true);
+            rb.set_angvel(Vector::ZERO, true);
+            rb.reset_forces(false);
+            rb.reset_torques(false);
+        }
+        self.torque_nm = [0.0; NUM_JOINTS];
+    }
+
+    /// Reads the robot's state.
+    pub fn state(&self) -> RobotState {
+        let mb = self.multibody();
+        let vel = mb.generalized_velocity();
+        let mut s = RobotState::default();
+        for j in 0..NUM_JOINTS {
+            s.q_rad[j] = mb.link(self.link_of_joint[j]).map(|l| l.joint().coords()[3]).unwrap_or(0.0);
+            s.qdot_rad_s[j] = vel[self.dof_of_joint[j]];
+        }
+        let rb = &self.world.bodies[self.base];
+        let p = rb.translation();
+        let r = rb.rotation();
+        let v = rb.linvel();
+        let w = rb.angvel();
+        // linvel is the centre of mass velocity: move it to the base origin.
+        let com_offset_world = rb.center_of_mass() - p;
+        let v_origin = v - w.cross(com_offset_world);
+        s.base_pos_world_m = [p.x, p.y, p.z];
+        s.base_quat_xyzw = [r.x, r.y, r.z, r.w];
+        s.base_lin_vel_world_m_s = [v_origin.x, v_origin.y, v_origin.z];
+        s.base_ang_vel_world_rad_s = [w.x, w.y, w.z];
+        s
+    }
+
+    /// Runs one physics step with the drives tracking `q_target_rad` by the CSP law.
+    pub fn step(&mut self, q_target_rad: &[f32; NUM_JOINTS]) {
+        let state = self.state();
+        for j in 0..NUM_JOINTS {
+            self.torque_nm[j] = csp_torque_nm(
+                q_target_rad[j],
+                state.q_rad[j],
+                state.qdot_rad_s[j],
+                self.drives.kp1_per_s[j],
+                self.drives.kp2_nms_per_rad[j],
+                VELOCITY_LIMIT_RAD_S[j],
+                TORQUE_LIMIT_NM[j],
+                self.drives.motor_strength[j],
+            );
+        }
+        self.apply_joint_torques();
+        self.world.step();
+    }
+
+    fn apply_joint_torques(&mut self) {
+        for j in 0..NUM_JOINTS {
+            let h = self.child_body[j];
+            let rb = &mut self.world.bodies[h];
+            rb.reset_torques(false);
+        }
+        let base = &mut self.world.bodies[self.base];
+        base.reset_torques(false);
+        for j in 0..NUM_JOINTS {
+            let child = &self.world.bodies[self.child_body[j]];
+            let axis_world = child.rotation() * self.axis_local[j];
+            let torque = axis_world * self.torque_nm[j];
+            self.world.bodies[self.child_body[j]].add_torque(torque, true);
+            self.world.bodies[self.parent_body[j]].add_torque(-torque, true);
+        }
+    }
+
+    /// Foot forces and collision flags of the last step.
+    pub fn contacts(&self) -> ContactState {
+        let np = &self.world.narrow_phase;
+        let mut c = ContactState::default();
+        let inv_dt = 1.0 / PHYSICS_DT_S;
+        for leg in 0..NUM_LEGS {
+            if let Some(pair) = np.contact_pair(self.feet[leg], self.ground) {
+                if pair.has_any_active_contact() {
+                    let mut f = pair.total_impulse() * inv_dt;
+                    // total_impulse acts on collider1; we want the force on the foot.
+                    if pair.collider1 == self.ground {
+                        f = -f;
+                    }
+                    // The ground pushes the foot up.
+                    if f.z < 0.0 {
+                        f = -f;
+                    }
+                    c.foot_force_world_n[leg] = [f.x, f.y, f.z];
+                }
+            }
+            c.thighs[leg] = np.intersection_pair(self.thighs[leg], self.ground).unwrap_or(false);
+            c.shanks[leg] = np.intersection_pair(self.shanks[leg], self.ground).unwrap_or(false);
+        }
+        c.trunk = np.intersection_pair(self.trunk, self.ground).unwrap_or(false);
+        c
+    }
+
+    /// Total mass of the robot, kg.
+    pub fn total_mass_kg(&self) -> f32 {
+        self.multibody().links().map(|l| self.world.bodies[l.rigid_body_handle()].mass()).sum()
+    }
+
+    /// Sets the friction coefficient of all feet.
+    pub fn set_foot_friction(&mut self, friction: f32) {
+        for h in self.feet {
+            self.world.colliders[h].set_friction(friction);
+        }
+    }
+
+    /// Scales the mass of every link and adds `payload_kg` to the trunk at `payload_offset_m`
+    /// (base frame). Factors apply to the URDF's nominal values each call.
+    pub fn set_mass_properties(&mut self, link_mass_scale: &[f32], payload_kg: f32, payload_offset_base_m: [f32; 3]) {
+        let _ = (link_mass_scale, payload_kg, payload_offset_base_m);
+    }
+
+    /// Changes the base velocity by `dv_world_m_s` (a push).
+    pub fn push(&mut self, dv_world_m_s: [f32; 3]) {
+        let mb = self.multibody_mut();
+        let mut v = mb.generalized_velocity_mut();
+        for k in 0..3 {
+            v[k] += dv_world_m_s[k];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::terrain::{Terrain, TerrainConfig};
+    use crate::urdf_model::{default_urdf_path, UrdfModel};
+    use hexapod_core::robot::{Q0_RAD, TOTAL_MASS_KG};
+
+    fn flat_robot() -> RobotWorld {
+        let model = UrdfModel::load(&default_urdf_path()).unwrap();
+        let ground = Terrain::generate(&TerrainConfig::default()).collider();
+        RobotWorld::new(&model, ground, 1).unwrap()
+    }
+
+    #[test]
+    fn total_mass_matches_core() {
+        let mut r = flat_robot();
+        r.step(&Q0_RAD);
+        let m = r.total_mass_kg();
+        assert!((m - TOTAL_MASS_KG).abs() < 1e-3, "{m}");
+    }
+
+    #[test]
+    fn foot_positions_match_core_kinematics() {
+        let mut r = flat_robot();
+        r.step(&Q0_RAD);
+        let s = r.state();
+        let feet = hexapod_core::kinematics::foot_positions_base(&s.q_rad);
+        let rot = Rotation::from_xyzw(s.base_quat_xyzw[0], s.base_quat_xyzw[1], s.base_quat_xyzw[2], s.base_quat_xyzw[3]);
+        let base = Vector::from(s.base_pos_world_m);
+        for leg in 0..NUM_LEGS {
+            let sim = r.world.colliders[r.feet[leg]].translation();
+            let core = base + rot * Vector::from(feet[leg]);
+            assert!((sim - core).length() < 1e-4, "leg {leg}: {sim:?} vs {core:?}");
+        }
+    }
+
+    #[test]
+    fn reset_places_joints() {
+        let mut r = flat_robot();
+        let mut q = Q0_RAD;
+        q[4] += 0.3;
+        r.reset([1.0, 2.0, 0.5], [0.0, 0.0, 0.0, 1.0], &q);
+        let s = r.state();
+        for j in 0..NUM_JOINTS {
+            assert!((s.q_rad[j] - q[j]).abs() < 1e-5, "{j}");
+        }
+        assert!((s.base_pos_world_m[0] - 1.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn stands_10_s_at_about_31_cm() {
+        let mut r = flat_robot();
+        for _ in 0..2000 {
+            r.step(&Q0_RAD);
+        }
+        let s = r.state();
+        let height = s.base_pos_world_m[2];
+        assert!((height - 0.30).abs() < 0.02, "height {height}");
+        for j in 0..NUM_JOINTS {
+            assert!((s.q_rad[j] - Q0_RAD[j]).abs() < 0.05, "joint {j} drifted: {}", s.q_rad[j]);
+        }
+        let c = r.contacts();
+        let total_fz: f32 = c.foot_force_world_n.iter().map(|f| f[2]).sum();
+        assert!((total_fz - TOTAL_MASS_KG * 9.81).abs() < 0.1 * TOTAL_MASS_KG * 9.81, "fz {total_fz}");
+        assert!(!c.trunk);
+    }
+}

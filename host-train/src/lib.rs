@@ -1,4 +1,13 @@
 //! `host-train`: motion priors by trajectory optimization, and the PPO + AMP trainer.
 #![warn(missing_docs)]
 
+pub mod algo;
+pub mod amp;
+pub mod checkpoint;
 pub mod cli;
+pub mod config;
+pub mod env;
+pub mod error;
+pub mod metrics;
+pub mod nn;
+pub mod runner;

@@ -1,0 +1,410 @@
+//! PPO in the manner of rsl_rl with an AMP discriminator updated in the same minibatch loop:
+//! clipped surrogate, clipped value loss, entropy bonus, adaptive-KL learning rate, global
+//! gradient-norm clipping, the estimator's supervised loss, and the discriminator's
+//! least-squares loss with gradient penalty (its own Adam, same backward pass).
+
+use crate::algo::adam::Adam;
+use crate::algo::storage::{gather_rows, RolloutStorage};
+use crate::amp::discriminator::Discriminator;
+use crate::amp::prior_source::MotionPriorSource;
+use crate::amp::replay::ReplayBuffer;
+use crate::config::{LrSchedule, TrainConfig};
+use crate::error::TrainError;
+use crate::nn::actor_critic::{ActorCritic, CriticInput};
+use candle_core::{DType, Device, Result, Tensor};
+use candle_nn::VarMap;
+use hexapod_core::amp::AMP_STATE_DIM;
+use hexapod_core::nets::{ACTOR_OUT, ESTIMATOR_OUT};
+use hexapod_core::obs::{ACTOR_OBS_DIM, HEIGHT_SCAN_DIM, HISTORY_DIM, PRIVILEGED_DIM, PRIV_LIN_VEL};
+use host_sim::vec_env::Observations;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+/// What the policy does for one batch of observations.
+pub struct ActOutput {
+    /// Sampled actions `[N, 18]`.
+    pub actions: Vec<f32>,
+    /// Action means `[N, 18]`.
+    pub mean: Vec<f32>,
+    /// Values `[N]`.
+    pub values: Vec<f32>,
+    /// Log-probabilities of the sampled actions `[N]`.
+    pub log_probs: Vec<f32>,
+    /// Velocity estimates `[N, 3]` (scaled), empty without estimator.
+    pub estimate: Vec<f32>,
+}
+
+/// Means over one update's minibatches.
+#[derive(Clone, Debug, Default)]
+pub struct UpdateStats {
+    /// Clipped surrogate loss.
+    pub surrogate: f32,
+    /// Value loss.
+    pub value: f32,
+    /// Entropy.
+    pub entropy: f32,
+    /// Estimator MSE (scaled units).
+    pub estimator: f32,
+    /// Mean KL between the rollout policy and the updated policy.
+    pub kl: f32,
+    /// Learning rate after the update.
+    pub learning_rate: f64,
+    /// Gradient norm before clipping.
+    pub grad_norm: f32,
+    /// Discriminator least-squares loss.
+    pub disc_loss: f32,
+    /// Gradient penalty (weighted).
+    pub grad_penalty: f32,
+    /// Mean D on prior transitions.
+    pub d_prior: f32,
+    /// Mean D on policy transitions.
+    pub d_policy: f32,
+    /// Mean action standard deviation.
+    pub action_std: f32,
+}
+
+/// The PPO + AMP learner: networks, normalizers, optimizers, replay buffer.
+pub struct Ppo {
+    /// Resolved configuration.
+    pub cfg: TrainConfig,
+    /// Device (CPU).
+    pub device: Device,
+    /// Trainable actor-critic variables.
+    pub params: VarMap,
+    /// Normalizer statistics (not trained by gradient).
+    pub stats: VarMap,
+    /// Trainable discriminator variables.
+    pub disc_params: VarMap,
+    /// The actor-critic.
+    pub ac: ActorCritic,
+    /// The discriminator (when the style reward is on).
+    pub disc: Option<Discriminator>,
+    /// Adam over the actor-critic.
+    pub opt: Adam,
+    /// Adam over the discriminator.
+    pub disc_opt: Option<Adam>,
+    /// Policy transitions for the discriminator.
+    pub replay: Option<ReplayBuffer>,
+    /// Learner randomness (action noise, minibatches, replay sampling).
+    pub rng: ChaCha8Rng,
+}
+
+/// Per-sample PPO losses for a minibatch (all `[B]` tensors but the clip), returning
+/// (surrogate loss, value loss) as scalar tensors:
+/// `L_clip = mean(max(-A r, -A clip(r, 1-e, 1+e)))`, `r = exp(logp - logp_old)`;
+/// `L_V = mean(max((V - R)^2, (V_old + clip(V - V_old, -e, e) - R)^2))` (or plain MSE).
+pub fn ppo_losses(
+    log_probs: &Tensor,
+    old_log_probs: &Tensor,
+    advantages: &Tensor,
+    values: &Tensor,
+    old_values: &Tensor,
+    returns: &Tensor,
+    clip: f64,
+    clipped_value: bool,
+) -> Result<(Tensor, Tensor)> {
+    let ratio = log_probs.sub(old_log_probs)?.exp()?;
+    let neg_adv = advantages.neg()?;
+    let surr = neg_adv.mul(&ratio)?;
+    let surr_clipped = neg_adv.mul(&ratio.clamp(1.0 - clip, 1.0 + clip)?)?;
+    let surrogate = surr.maximum(&surr_clipped)?.mean_all()?;
+    let value_loss = if clipped_value {
+        let v_clipped = (old_values + values.sub(old_values)?.clamp(-clip, clip)?)?;
+        let a = values.sub(returns)?.sqr()?;
+        let b = v_clipped.sub(returns)?.sqr()?;
+        a.maximum(&b)?.mean_all()?
+    } else {
+        values.sub(returns)?.sqr()?.mean_all()?
+    };
+    Ok((surrogate, value_loss))
+}
+
+/// Mean KL(old || new) of diagonal Gaussians, rsl_rl's formula.
+pub fn gaussian_kl(old_mean: &Tensor, old_log_std: &Tensor, mean: &Tensor, log_std: &Tensor) -> Result<f32> {
+    let var_ratio = old_log_std.sub(log_std)?.affine(2.0, 0.0)?.exp()?; // sigma_old^2 / sigma^2
+    let inv_var = log_std.affine(-2.0, 0.0)?.exp()?;
+    let d2 = old_mean.sub(mean)?.sqr()?.broadcast_mul(&inv_var)?; // (mu_old - mu)^2 / sigma^2
+    let per = d2.broadcast_add(&var_ratio)?.affine(0.5, -0.5)?.broadcast_add(&log_std.sub(old_log_std)?)?;
+    per.sum(1)?.mean_all()?.to_scalar::<f32>()
+}
+
+fn tensor(data: Vec<f32>, cols: usize, device: &Device) -> Result<Tensor> {
+    let rows = data.len() / cols.max(1);
+    Tensor::from_vec(data, (rows, cols), device)
+}
+
+impl Ppo {
+    /// Builds networks and optimizers from a config.
+    pub fn new(cfg: &TrainConfig) -> std::result::Result<Self, TrainError> {
+        let device = Device::Cpu;
+        let (params, stats, disc_params) = (VarMap::new(), VarMap::new(), VarMap::new());
+        let ac = ActorCritic::new(&cfg.policy, &params, &stats, DType::F32, &device)?;
+        let (disc, disc_opt, replay) = if cfg.amp_enabled() {
+            let d = Discriminator::new(&cfg.amp.discriminator_hidden, &disc_params, &stats, DType::F32, &device)?;
+            let opt = Adam::new(&disc_params, cfg.amp.learning_rate)?;
+            (Some(d), Some(opt), Some(ReplayBuffer::new(cfg.amp.replay_buffer_size)))
+        } else {
+            (None, None, None)
+        };
+        let opt = Adam::new(&params, cfg.ppo.learning_rate)?;
+        Ok(Self {
+            cfg: cfg.clone(),
+            device,
+            params,
+            stats,
+            disc_params,
+            ac,
+            disc,
+            opt,
+            disc_opt,
+            replay,
+            rng: ChaCha8Rng::seed_from_u64(cfg.runner.seed),
+        })
+    }
+
+    /// Samples actions for observations; `deterministic` returns the means.
+    pub fn act(&mut self, obs: &Observations, deterministic: bool) -> Result<ActOutput> {
+        let dev = &self.device;
+        let actor = Tensor::from_slice(&obs.actor, (obs.actor.len() / ACTOR_OBS_DIM, ACTOR_OBS_DIM), dev)?;
+        let n = actor.dims()[0];
+        let history = Tensor::from_slice(&obs.history, (n, HISTORY_DIM), dev)?;
+        let out = self.ac.policy(&actor, &history)?;
+        let mean = out.mean.flatten_all()?.to_vec1::<f32>()?;
+        let std: Vec<f32> = self.ac.log_std.exp()?.to_vec1::<f32>()?;
+        let actions: Vec<f32> = if deterministic {
+            mean.clone()
+        } else {
+            mean.iter()
+                .enumerate()
+                .map(|(i, &m)| {
+                    let z: f32 = StandardNormal.sample(&mut self.rng);
+                    m + std[i % ACTOR_OUT] * z
+                })
+                .collect()
+        };
+        let actions_t = Tensor::from_slice(&actions, (n, ACTOR_OUT), dev)?;
+        let log_probs = self.ac.log_prob(&out.mean, &actions_t)?.to_vec1::<f32>()?;
+        let privileged = Tensor::from_slice(&obs.privileged, (n, PRIVILEGED_DIM), dev)?;
+        let heights = Tensor::from_slice(&obs.heights, (n, HEIGHT_SCAN_DIM), dev)?;
+        let values = self
+            .ac
+            .value(&CriticInput { actor_obs: &actor, history: &history, privileged: &privileged, heights: &heights })?
+            .to_vec1::<f32>()?;
+        let estimate = match out.estimate {
+            Some(e) => e.flatten_all()?.to_vec1::<f32>()?,
+            None => Vec::new(),
+        };
+        Ok(ActOutput { actions, mean, values, log_probs, estimate })
+    }
+
+    /// Values `[N]` of observations (for the bootstrap after the last step).
+    pub fn values(&self, obs: &Observations) -> Result<Vec<f32>> {
+        let dev = &self.device;
+        let n = obs.actor.len() / ACTOR_OBS_DIM;
+        let actor = Tensor::from_slice(&obs.actor, (n, ACTOR_OBS_DIM), dev)?;
+        let history = Tensor::from_slice(&obs.history, (n, HISTORY_DIM), dev)?;
+        let privileged = Tensor::from_slice(&obs.privileged, (n, PRIVILEGED_DIM), dev)?;
+        let heights = Tensor::from_slice(&obs.heights, (n, HEIGHT_SCAN_DIM), dev)?;
+        self.ac
+            .value(&CriticInput { actor_obs: &actor, history: &history, privileged: &privileged, heights: &heights })?
+            .to_vec1::<f32>()
+    }
+
+    /// Style rewards `[N]` (weighted) and raw discriminator outputs for policy transitions;
+    /// zeros without AMP.
+    pub fn style_rewards(&self, amp: &[f32], amp_next: &[f32]) -> Result<(Vec<f32>, Vec<f32>)> {
+        let n = amp.len() / AMP_STATE_DIM;
+        match &self.disc {
+            Some(d) => {
+                let (r, raw) = d.style_reward(amp, amp_next)?;
+                let w = self.cfg.rewards.style_weight;
+                Ok((r.into_iter().map(|x| w * x).collect(), raw))
+            }
+            None => Ok((vec![0.0; n], vec![0.0; n])),
+        }
+    }
+
+    /// One PPO (+ discriminator) update over a full rollout.
+    pub fn update(
+        &mut self,
+        storage: &RolloutStorage,
+        priors: Option<&mut dyn MotionPriorSource>,
+        iteration: usize,
+    ) -> std::result::Result<UpdateStats, TrainError> {
+        let p = self.cfg.ppo.clone();
+        let dev = self.device.clone();
+        let old_log_std = self.ac.log_std.detach().copy()?;
+        let mut priors = priors;
+        let mut st = UpdateStats::default();
+        let mut count = 0usize;
+        for _epoch in 0..p.num_learning_epochs {
+            for idx in storage.minibatch_indices(p.num_mini_batches, &mut self.rng) {
+                let b = idx.len();
+                let actor = tensor(gather_rows(&storage.actor_obs, ACTOR_OBS_DIM, &idx), ACTOR_OBS_DIM, &dev)?;
+                let history = tensor(gather_rows(&storage.history, HISTORY_DIM, &idx), HISTORY_DIM, &dev)?;
+                let privileged_v = gather_rows(&storage.privileged, PRIVILEGED_DIM, &idx);
+                let privileged = tensor(privileged_v, PRIVILEGED_DIM, &dev)?;
+                let heights = tensor(gather_rows(&storage.heights, HEIGHT_SCAN_DIM, &idx), HEIGHT_SCAN_DIM, &dev)?;
+                let actions = tensor(gather_rows(&storage.actions, ACTOR_OUT, &idx), ACTOR_OUT, &dev)?;
+                let old_mean = tensor(gather_rows(&storage.action_mean, ACTOR_OUT, &idx), ACTOR_OUT, &dev)?;
+                let col = |v: &[f32]| Tensor::from_vec(gather_rows(v, 1, &idx), b, &dev);
+                let (old_logp, adv, old_v, ret) = (
+                    col(&storage.log_probs)?,
+                    col(&storage.advantages)?,
+                    col(&storage.values)?,
+                    col(&storage.returns)?,
+                );
+
+                let out = self.ac.policy(&actor, &history)?;
+                let kl = gaussian_kl(&old_mean, &old_log_std, &out.mean, &self.ac.log_std)?;
+                if p.schedule == LrSchedule::Adaptive && kl.is_finite() {
+                    if kl > 2.0 * p.desired_kl {
+                        self.opt.lr = (self.opt.lr / 1.5).max(1e-5);
+                    } else if kl < 0.5 * p.desired_kl && kl > 0.0 {
+                        self.opt.lr = (self.opt.lr * 1.5).min(1e-2);
+                    }
+                }
+                let logp = self.ac.log_prob(&out.mean, &actions)?;
+                let values = self.ac.value(&CriticInput {
+                    actor_obs: &actor,
+                    history: &history,
+                    privileged: &privileged,
+                    heights: &heights,
+                })?;
+                let (surr, vloss) =
+                    ppo_losses(&logp, &old_logp, &adv, &values, &old_v, &ret, p.clip_param as f64, p.use_clipped_value_loss)?;
+                let entropy = self.ac.entropy()?;
+                let mut loss = ((&surr + (&vloss * p.value_loss_coef as f64)?)? - (&entropy * p.entropy_coef as f64)?)?;
+                let mut est_loss_v = 0.0f32;
+                if let Some(estimate) = &out.estimate {
+                    let target = privileged.narrow(1, PRIV_LIN_VEL.start, ESTIMATOR_OUT)?;
+                    let est_loss = estimate.sub(&target)?.sqr()?.mean_all()?;
+                    est_loss_v = est_loss.to_scalar::<f32>()?;
+                    loss = (loss + (est_loss * p.estimator_loss_coef as f64)?)?;
+                }
+                let mut disc_v = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
+                let mut amp_batch = None;
+                if let (Some(disc), Some(replay), Some(src)) = (&self.disc, &self.replay, priors.as_deref_mut()) {
+                    let (ps, psn) = replay.sample(b, &mut self.rng);
+                    let (es, esn) = src.sample(b, &mut self.rng);
+                    let policy_in = disc.input(&ps, &psn)?;
+                    let prior_in = disc.input(&es, &esn)?;
+                    let dl = disc.loss(&prior_in, &policy_in, self.cfg.amp.grad_penalty_weight as f64)?;
+                    disc_v = (dl.ls_loss, dl.grad_penalty, dl.d_prior, dl.d_policy);
+                    loss = (loss + (dl.total * self.cfg.amp.loss_coef as f64)?)?;
+                    amp_batch = Some((ps, psn, es, esn));
+                }
+                let loss_v = loss.to_scalar::<f32>()?;
+                let surr_v = surr.to_scalar::<f32>()?;
+                let vloss_v = vloss.to_scalar::<f32>()?;
+                if !loss_v.is_finite() {
+                    return Err(TrainError::NonFiniteLoss {
+                        what: "total loss",
+                        iteration,
+                        surrogate: surr_v,
+                        value: vloss_v,
+                        estimator: est_loss_v,
+                        discriminator: disc_v.0 + disc_v.1,
+                    });
+                }
+                let grads = loss.backward()?;
+                let gn = self.opt.step(&grads, Some(p.max_grad_norm as f64))?;
+                if let Some(dopt) = &mut self.disc_opt {
+                    dopt.step(&grads, None)?;
+                }
+                if let (Some(disc), Some((ps, psn, es, esn))) = (&mut self.disc, amp_batch) {
+                    for s in [&ps, &psn, &es, &esn] {
+                        disc.norm.update(s)?;
+                    }
+                }
+                st.surrogate += surr_v;
+                st.value += vloss_v;
+                st.entropy += entropy.to_scalar::<f32>()?;
+                st.estimator += est_loss_v;
+                st.kl += kl;
+                st.grad_norm += gn as f32;
+                st.disc_loss += disc_v.0;
+                st.grad_penalty += disc_v.1;
+                st.d_prior += disc_v.2;
+                st.d_policy += disc_v.3;
+                count += 1;
+            }
+        }
+        let c = count.max(1) as f32;
+        for v in [
+            &mut st.surrogate,
+            &mut st.value,
+            &mut st.entropy,
+            &mut st.estimator,
+            &mut st.kl,
+            &mut st.grad_norm,
+            &mut st.disc_loss,
+            &mut st.grad_penalty,
+            &mut st.d_prior,
+            &mut st.d_policy,
+        ] {
+            *v /= c;
+        }
+        st.learning_rate = self.opt.lr;
+        st.action_std = self.ac.log_std.exp()?.mean_all()?.to_scalar::<f32>()?;
+        Ok(st)
+    }
+
+    /// Pushes policy transitions into the replay buffer (skipping robots whose actions were invalid).
+    pub fn record_policy_transitions(&mut self, amp: &[f32], amp_next: &[f32], invalid: &[bool]) {
+        if let Some(replay) = &mut self.replay {
+            if invalid.iter().any(|&x| x) {
+                let keep: Vec<usize> = (0..invalid.len()).filter(|&i| !invalid[i]).collect();
+                replay.insert(&gather_rows(amp, AMP_STATE_DIM, &keep), &gather_rows(amp_next, AMP_STATE_DIM, &keep));
+            } else {
+                replay.insert(amp, amp_next);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn t(v: &[f32]) -> Tensor {
+        Tensor::from_slice(v, v.len(), &Device::Cpu).unwrap()
+    }
+
+    /// A batch of three samples worked out by hand (clip 0.2):
+    /// r = e^{0.5} = 1.6487 (A = 1: clipped to 1.2, loss -1.2),
+    /// r = e^{-0.5} = 0.6065 (A = -2: clipped to 0.8, max(1.2131, 1.6) = 1.6),
+    /// r = 1 (A = 0.5: -0.5). Surrogate = mean(-1.2, 1.6, -0.5) = -0.0333.
+    #[test]
+    fn ppo_loss_on_a_hand_checked_batch() {
+        let logp = t(&[0.5, -0.5, 0.0]);
+        let old = t(&[0.0, 0.0, 0.0]);
+        let adv = t(&[1.0, -2.0, 0.5]);
+        // Values: V - V_old = 0.5 clipped to 0.2; -0.1 unclipped; 0.
+        let v = t(&[1.5, 0.9, 2.0]);
+        let v_old = t(&[1.0, 1.0, 2.0]);
+        let ret = t(&[2.0, 0.0, 1.0]);
+        let (s, vl) = ppo_losses(&logp, &old, &adv, &v, &v_old, &ret, 0.2, true).unwrap();
+        let s = s.to_scalar::<f32>().unwrap();
+        assert!((s - (-1.2 + 1.6 - 0.5) / 3.0).abs() < 1e-5, "{s}");
+        // Sample 0: (1.5-2)^2 = 0.25 vs (1.2-2)^2 = 0.64 -> 0.64; sample 1: 0.81 vs 0.81; sample 2: 1.
+        let vl = vl.to_scalar::<f32>().unwrap();
+        assert!((vl - (0.64 + 0.81 + 1.0) / 3.0).abs() < 1e-5, "{vl}");
+        let (_, plain) = ppo_losses(&logp, &old, &adv, &v, &v_old, &ret, 0.2, false).unwrap();
+        assert!((plain.to_scalar::<f32>().unwrap() - (0.25 + 0.81 + 1.0) / 3.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn kl_of_identical_policies_is_zero_and_matches_closed_form() {
+        let m = Tensor::new(&[[0.0f32, 1.0]], &Device::Cpu).unwrap();
+        let ls = t(&[0.0, 0.0]);
+        assert!(gaussian_kl(&m, &ls, &m, &ls).unwrap().abs() < 1e-7);
+        // KL(N(0,1) || N(1, e^{0.5 * 2}))) per dim: ln(s2/s1) + (s1^2 + d^2)/(2 s2^2) - 1/2.
+        let m2 = Tensor::new(&[[1.0f32, 1.0]], &Device::Cpu).unwrap();
+        let ls2 = t(&[0.5, 0.0]);
+        let s2 = 0.5f32.exp();
+        let want = (0.5 + (1.0 + 1.0) / (2.0 * s2 * s2) - 0.5) + 0.0;
+        assert!((gaussian_kl(&m, &ls, &m2, &ls2).unwrap() - want).abs() < 1e-5);
+    }
+}

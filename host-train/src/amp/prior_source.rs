@@ -1,0 +1,63 @@
+//! Where prior (expert) AMP transitions come from: the motion-prior dataset, or a synthetic
+//! tripod oscillation for tests and smoke runs.
+
+use hexapod_core::amp::{amp_state, AMP_STATE_DIM};
+use hexapod_core::robot::{Leg, NUM_JOINTS, Q0_RAD};
+use hexapod_core::timing::POLICY_DT_S;
+use rand::{Rng, RngCore};
+
+/// A source of prior transitions.
+pub trait MotionPriorSource {
+    /// `n` transitions (`s_t` `[n, 61]`, `s_t+1` `[n, 61]`), one policy step apart.
+    fn sample(&mut self, n: usize, rng: &mut dyn RngCore) -> (Vec<f32>, Vec<f32>);
+}
+
+/// An idealized tripod gait: the two tripods swing in antiphase at a fixed frequency while
+/// the base moves forward. Not a physically optimized motion: only for tests and smoke runs.
+pub struct SyntheticTripod {
+    /// Stride frequency, Hz.
+    pub frequency_hz: f32,
+    /// Forward speed, m/s.
+    pub speed_m_s: f32,
+}
+
+impl Default for SyntheticTripod {
+    fn default() -> Self {
+        Self { frequency_hz: 1.5, speed_m_s: 0.3 }
+    }
+}
+
+impl SyntheticTripod {
+    /// The AMP state at gait phase `phase_rad`.
+    pub fn state(&self, phase_rad: f32) -> [f32; AMP_STATE_DIM] {
+        let omega = 2.0 * std::f32::consts::PI * self.frequency_hz;
+        let mut q = Q0_RAD;
+        let mut qd = [0.0f32; NUM_JOINTS];
+        for leg in Leg::ALL {
+            let offset = if leg.tripod() == hexapod_core::robot::Tripod::A { 0.0 } else { std::f32::consts::PI };
+            let p = phase_rad + offset;
+            let j = 3 * leg.index();
+            // Hip sweeps, thigh lifts during the half period the hip swings forward.
+            q[j] += 0.2 * p.sin();
+            qd[j] = 0.2 * omega * p.cos();
+            let lift = (-p.cos()).max(0.0);
+            q[j + 1] -= 0.3 * lift;
+            qd[j + 1] = if lift > 0.0 { -0.3 * omega * p.sin() } else { 0.0 };
+        }
+        amp_state(&q, &qd, [self.speed_m_s, 0.0, 0.0], [0.0; 3], 0.31)
+    }
+}
+
+impl MotionPriorSource for SyntheticTripod {
+    fn sample(&mut self, n: usize, rng: &mut dyn RngCore) -> (Vec<f32>, Vec<f32>) {
+        let dphase = 2.0 * std::f32::consts::PI * self.frequency_hz * POLICY_DT_S;
+        let mut s = Vec::with_capacity(n * AMP_STATE_DIM);
+        let mut sn = Vec::with_capacity(n * AMP_STATE_DIM);
+        for _ in 0..n {
+            let phase = rng.gen_range(0.0..2.0 * std::f32::consts::PI);
+            s.extend_from_slice(&self.state(phase));
+            sn.extend_from_slice(&self.state(phase + dphase));
+        }
+        (s, sn)
+    }
+}

@@ -1,0 +1,254 @@
+//! Checkpoints: `policy.safetensors` (every network and normalizer, f32, candle VarBuilder
+//! keys), `config.toml` (the resolved config), `optimizer.safetensors` (Adam moments and
+//! learning rates) and `state.json` (iteration) in one directory, written atomically.
+
+use crate::algo::ppo::Ppo;
+use crate::config::TrainConfig;
+use candle_core::{Device, Tensor};
+use candle_nn::VarMap;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// Network weights and normalizers.
+pub const POLICY_FILE: &str = "policy.safetensors";
+/// The resolved config.
+pub const CONFIG_FILE: &str = "config.toml";
+/// Optimizer state.
+pub const OPTIMIZER_FILE: &str = "optimizer.safetensors";
+/// Runner state.
+pub const STATE_FILE: &str = "state.json";
+
+/// Why a checkpoint could not be written or used.
+#[derive(Debug, thiserror::Error)]
+pub enum CheckpointError {
+    /// A file is missing or unreadable.
+    #[error("checkpoint {path}: {source}")]
+    Io {
+        /// File.
+        path: String,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// A file is not what it should be.
+    #[error("checkpoint {path} is malformed: {message}")]
+    Malformed {
+        /// File.
+        path: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// The config asks for a tensor the checkpoint lacks.
+    #[error("checkpoint {path} has no tensor `{name}` (was it trained with a different config?)")]
+    MissingTensor {
+        /// File.
+        path: String,
+        /// Key.
+        name: String,
+    },
+    /// A tensor's shape differs from what the config builds.
+    #[error("checkpoint {path}: tensor `{name}` has shape {found:?} but the config builds {expected:?}")]
+    ShapeMismatch {
+        /// File.
+        path: String,
+        /// Key.
+        name: String,
+        /// Shape from the config.
+        expected: Vec<usize>,
+        /// Shape in the file.
+        found: Vec<usize>,
+    },
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> CheckpointError + '_ {
+    move |source| CheckpointError::Io { path: path.display().to_string(), source }
+}
+
+fn collect(maps: &[&VarMap]) -> HashMap<String, Tensor> {
+    let mut out = HashMap::new();
+    for map in maps {
+        for (k, v) in map.data().lock().expect("var map lock").iter() {
+            out.insert(k.clone(), v.as_tensor().clone());
+        }
+    }
+    out
+}
+
+/// Writes a checkpoint of `ppo` at `iteration` into `dir` (replacing it atomically).
+pub fn save(dir: &Path, ppo: &Ppo, iteration: usize) -> Result<(), CheckpointError> {
+    let tmp: PathBuf = dir.with_extension("tmp");
+    if tmp.exists() {
+        std::fs::remove_dir_all(&tmp).map_err(io(&tmp))?;
+    }
+    std::fs::create_dir_all(&tmp).map_err(io(&tmp))?;
+    let weights = collect(&[&ppo.params, &ppo.stats, &ppo.disc_params]);
+    let policy_path = tmp.join(POLICY_FILE);
+    candle_core::safetensors::save(&weights, &policy_path)
+        .map_err(|e| CheckpointError::Malformed { path: policy_path.display().to_string(), message: e.to_string() })?;
+    let mut opt: HashMap<String, Tensor> = HashMap::new();
+    let state = ppo.opt.state("optimizer.policy").map_err(|e| malformed(&tmp, e))?;
+    opt.extend(state);
+    if let Some(d) = &ppo.disc_opt {
+        opt.extend(d.state("optimizer.discriminator").map_err(|e| malformed(&tmp, e))?);
+    }
+    let opt_path = tmp.join(OPTIMIZER_FILE);
+    candle_core::safetensors::save(&opt, &opt_path).map_err(|e| malformed(&opt_path, e))?;
+    let cfg_path = tmp.join(CONFIG_FILE);
+    std::fs::write(&cfg_path, ppo.cfg.to_toml_string()).map_err(io(&cfg_path))?;
+    let state_path = tmp.join(STATE_FILE);
+    std::fs::write(&state_path, format!("{{\"iteration\": {iteration}}}\n")).map_err(io(&state_path))?;
+    if dir.exists() {
+        std::fs::remove_dir_all(dir).map_err(io(dir))?;
+    }
+    std::fs::rename(&tmp, dir).map_err(io(dir))
+}
+
+fn malformed(path: &Path, e: impl ToString) -> CheckpointError {
+    CheckpointError::Malformed { path: path.display().to_string(), message: e.to_string() }
+}
+
+/// Reads the resolved config saved in a checkpoint directory.
+pub fn load_config(dir: &Path) -> Result<TrainConfig, CheckpointError> {
+    let path = dir.join(CONFIG_FILE);
+    let text = std::fs::read_to_string(&path).map_err(io(&path))?;
+    TrainConfig::from_toml_str(&text, &path.display().to_string()).map_err(|e| malformed(&path, e))
+}
+
+/// Iteration stored in a checkpoint.
+pub fn load_iteration(dir: &Path) -> Result<usize, CheckpointError> {
+    let path = dir.join(STATE_FILE);
+    let text = std::fs::read_to_string(&path).map_err(io(&path))?;
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| malformed(&path, e))?;
+    v.get("iteration")
+        .and_then(|i| i.as_u64())
+        .map(|i| i as usize)
+        .ok_or_else(|| malformed(&path, "no `iteration`"))
+}
+
+fn read_tensors(path: &Path) -> Result<HashMap<String, Tensor>, CheckpointError> {
+    if !path.exists() {
+        return Err(CheckpointError::Io {
+            path: path.display().to_string(),
+            source: std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
+        });
+    }
+    candle_core::safetensors::load(path, &Device::Cpu).map_err(|e| malformed(path, e))
+}
+
+fn load_into(maps: &[&VarMap], tensors: &HashMap<String, Tensor>, path: &Path) -> Result<(), CheckpointError> {
+    for map in maps {
+        let data = map.data().lock().expect("var map lock");
+        let mut names: Vec<&String> = data.keys().collect();
+        names.sort();
+        for name in names {
+            let var = &data[name];
+            let t = tensors.get(name).ok_or_else(|| CheckpointError::MissingTensor {
+                path: path.display().to_string(),
+                name: name.clone(),
+            })?;
+            if t.dims() != var.dims() {
+                return Err(CheckpointError::ShapeMismatch {
+                    path: path.display().to_string(),
+                    name: name.clone(),
+                    expected: var.dims().to_vec(),
+                    found: t.dims().to_vec(),
+                });
+            }
+            let t = t.to_dtype(var.dtype()).map_err(|e| malformed(path, e))?;
+            var.set(&t).map_err(|e| malformed(path, e))?;
+        }
+    }
+    Ok(())
+}
+
+/// Loads weights and normalizers (and, with `with_optimizer`, the optimizer state) from
+/// `dir` into `ppo`, checking every tensor's presence and shape against the config.
+pub fn load(dir: &Path, ppo: &mut Ppo, with_optimizer: bool) -> Result<(), CheckpointError> {
+    let path = dir.join(POLICY_FILE);
+    let tensors = read_tensors(&path)?;
+    load_into(&[&ppo.params, &ppo.stats, &ppo.disc_params], &tensors, &path)?;
+    ppo.ac.sync_normalizers().map_err(|e| malformed(&path, e))?;
+    if let Some(d) = &mut ppo.disc {
+        d.norm.sync_from_vars().map_err(|e| malformed(&path, e))?;
+    }
+    if with_optimizer {
+        let opt_path = dir.join(OPTIMIZER_FILE);
+        if opt_path.exists() {
+            let opt = read_tensors(&opt_path)?;
+            ppo.opt.load_state("optimizer.policy", &opt).map_err(|e| malformed(&opt_path, e))?;
+            if let Some(d) = &mut ppo.disc_opt {
+                d.load_state("optimizer.discriminator", &opt).map_err(|e| malformed(&opt_path, e))?;
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::{EnvKind, PriorKind};
+
+    fn tiny() -> TrainConfig {
+        let mut c = TrainConfig::default();
+        c.env.kind = EnvKind::Fake;
+        c.env.num_envs = 4;
+        c.policy.estimator_hidden = vec![8];
+        c.policy.memory_hidden = vec![8];
+        c.policy.actor_hidden = vec![8];
+        c.policy.critic_hidden = vec![8];
+        c.policy.terrain_encoder_hidden = vec![8];
+        c.policy.privileged_encoder_hidden = vec![8];
+        c.amp.discriminator_hidden = vec![8];
+        c.amp.prior_kind = PriorKind::Synthetic;
+        c
+    }
+
+    fn tmpdir(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("hexapod-ckpt-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        d
+    }
+
+    #[test]
+    fn round_trip_restores_every_tensor_and_the_config() {
+        let cfg = tiny();
+        let mut a = Ppo::new(&cfg).unwrap();
+        a.ac.norm_actor.update(&vec![0.5; 63 * 3]).unwrap();
+        a.opt.lr = 0.0042;
+        let dir = tmpdir("rt");
+        save(&dir, &a, 17).unwrap();
+        assert_eq!(load_config(&dir).unwrap(), cfg);
+        assert_eq!(load_iteration(&dir).unwrap(), 17);
+        let mut b = Ppo::new(&TrainConfig { runner: crate::config::RunnerConfig { seed: 99, ..cfg.runner.clone() }, ..cfg.clone() }).unwrap();
+        load(&dir, &mut b, true).unwrap();
+        let (ta, tb) = (collect(&[&a.params, &a.stats, &a.disc_params]), collect(&[&b.params, &b.stats, &b.disc_params]));
+        assert_eq!(ta.len(), tb.len());
+        for (k, t) in &ta {
+            let x = t.flatten_all().unwrap().to_vec1::<f32>().unwrap();
+            let y = tb[k].flatten_all().unwrap().to_vec1::<f32>().unwrap();
+            assert_eq!(x, y, "{k}");
+        }
+        assert!((b.opt.lr - 0.0042).abs() < 1e-6);
+        assert_eq!(b.ac.norm_actor.count(), 3.0);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn shape_mismatch_and_missing_files_are_clear_errors() {
+        let cfg = tiny();
+        let a = Ppo::new(&cfg).unwrap();
+        let dir = tmpdir("mismatch");
+        save(&dir, &a, 1).unwrap();
+        let mut other = cfg.clone();
+        other.policy.actor_hidden = vec![16];
+        let mut b = Ppo::new(&other).unwrap();
+        let err = load(&dir, &mut b, false).unwrap_err();
+        assert!(matches!(err, CheckpointError::ShapeMismatch { .. }), "{err}");
+        assert!(err.to_string().contains("actor.layers.0"), "{err}");
+        let err = load(&dir.join("nope"), &mut b, false).unwrap_err();
+        assert!(err.to_string().contains("policy.safetensors"), "{err}");
+        std::fs::write(dir.join(POLICY_FILE), b"not a safetensors file").unwrap();
+        assert!(matches!(load(&dir, &mut b, false).unwrap_err(), CheckpointError::Malformed { .. }));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,388 @@
+//! The training configuration: one `Default` struct per concern, read from TOML presets
+//! (`configs/*.toml`, `deny_unknown_fields`) and saved, resolved, beside every checkpoint.
+
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Why a configuration could not be used.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// The file could not be read.
+    #[error("cannot read config {path}: {source}")]
+    Io {
+        /// File that failed.
+        path: String,
+        /// Underlying error.
+        source: std::io::Error,
+    },
+    /// The TOML is malformed or has unknown or mistyped keys.
+    #[error("malformed config {path}: {message}")]
+    Parse {
+        /// File that failed.
+        path: String,
+        /// The parser's message (names the key and line).
+        message: String,
+    },
+    /// A value is out of its meaningful range.
+    #[error("invalid config: {0}")]
+    Invalid(String),
+}
+
+/// Which environment the trainer drives.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EnvKind {
+    /// The rapier3d hexapod of `host-sim`.
+    Sim,
+    /// A deterministic point-mass stand-in with the robot's observation sizes (tests, smoke runs).
+    Fake,
+}
+
+/// Environment section.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EnvConfig {
+    /// Environment implementation.
+    pub kind: EnvKind,
+    /// Number of parallel robots.
+    pub num_envs: usize,
+    /// Seed of the environment (terrain, randomization, commands).
+    pub seed: u64,
+    /// Episode length in policy steps for the fake environment (the simulator uses 20 s).
+    pub fake_episode_steps: usize,
+}
+
+impl Default for EnvConfig {
+    fn default() -> Self {
+        Self { kind: EnvKind::Sim, num_envs: 128, seed: 1, fake_episode_steps: 200 }
+    }
+}
+
+/// Reward terms (paper Table I): r = r_g + r_s + r_l; the ablations switch terms off.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RewardConfig {
+    /// Task (velocity tracking) reward r_g.
+    pub task: bool,
+    /// Style reward r_s from the discriminator.
+    pub style: bool,
+    /// Penalties r_l.
+    pub penalties: bool,
+    /// Scale of the style reward (paper: 1).
+    pub style_weight: f32,
+}
+
+impl Default for RewardConfig {
+    fn default() -> Self {
+        Self { task: true, style: true, penalties: true, style_weight: 1.0 }
+    }
+}
+
+/// Network shapes and the asymmetric actor-critic's structure.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PolicyConfig {
+    /// Estimator hidden sizes (history -> scaled base velocity).
+    pub estimator_hidden: Vec<usize>,
+    /// Memory encoder hidden sizes (history -> latent).
+    pub memory_hidden: Vec<usize>,
+    /// Memory latent size.
+    pub memory_latent: usize,
+    /// Low-level actor hidden sizes.
+    pub actor_hidden: Vec<usize>,
+    /// Critic hidden sizes.
+    pub critic_hidden: Vec<usize>,
+    /// Privileged encoder g_p hidden sizes.
+    pub privileged_encoder_hidden: Vec<usize>,
+    /// Privileged latent l^p size.
+    pub privileged_latent: usize,
+    /// Terrain encoder g_e hidden sizes.
+    pub terrain_encoder_hidden: Vec<usize>,
+    /// Terrain latent l^e size.
+    pub terrain_latent: usize,
+    /// Initial action standard deviation.
+    pub init_noise_std: f32,
+    /// The actor reads the velocity estimate (false: "Baseline").
+    pub use_estimator: bool,
+    /// The critic reads the privileged state and terrain through g_p and g_e
+    /// (false: "Baseline" and "Concurrent", whose critic sees the actor's observations).
+    pub privileged_critic: bool,
+}
+
+impl Default for PolicyConfig {
+    fn default() -> Self {
+        use hexapod_core::nets;
+        Self {
+            estimator_hidden: nets::ESTIMATOR_HIDDEN.to_vec(),
+            memory_hidden: nets::MEMORY_HIDDEN.to_vec(),
+            memory_latent: nets::MEMORY_LATENT,
+            actor_hidden: nets::ACTOR_HIDDEN.to_vec(),
+            critic_hidden: vec![512, 256, 128],
+            privileged_encoder_hidden: vec![64, 32],
+            privileged_latent: 8,
+            terrain_encoder_hidden: vec![256, 128],
+            terrain_latent: 16,
+            init_noise_std: 1.0,
+            use_estimator: true,
+            privileged_critic: true,
+        }
+    }
+}
+
+/// Learning-rate schedule.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LrSchedule {
+    /// rsl_rl's adaptive schedule on the KL divergence.
+    Adaptive,
+    /// Constant learning rate.
+    Fixed,
+}
+
+/// PPO hyperparameters (rsl_rl's names).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PpoConfig {
+    /// Rollout length per environment and iteration.
+    pub num_steps_per_env: usize,
+    /// Passes over each rollout.
+    pub num_learning_epochs: usize,
+    /// Minibatches per pass.
+    pub num_mini_batches: usize,
+    /// Ratio and value clip.
+    pub clip_param: f32,
+    /// Discount.
+    pub gamma: f32,
+    /// GAE lambda.
+    pub lam: f32,
+    /// Value loss weight.
+    pub value_loss_coef: f32,
+    /// Entropy bonus weight.
+    pub entropy_coef: f32,
+    /// Estimator (supervised) loss weight.
+    pub estimator_loss_coef: f32,
+    /// Initial learning rate of the actor-critic.
+    pub learning_rate: f64,
+    /// Global gradient-norm clip.
+    pub max_grad_norm: f32,
+    /// Clip the value loss around the old values.
+    pub use_clipped_value_loss: bool,
+    /// Learning-rate schedule.
+    pub schedule: LrSchedule,
+    /// Target KL of the adaptive schedule.
+    pub desired_kl: f32,
+}
+
+impl Default for PpoConfig {
+    fn default() -> Self {
+        Self {
+            num_steps_per_env: 24,
+            num_learning_epochs: 5,
+            num_mini_batches: 4,
+            clip_param: 0.2,
+            gamma: 0.99,
+            lam: 0.95,
+            value_loss_coef: 1.0,
+            entropy_coef: 0.01,
+            estimator_loss_coef: 1.0,
+            learning_rate: 1e-3,
+            max_grad_norm: 1.0,
+            use_clipped_value_loss: true,
+            schedule: LrSchedule::Adaptive,
+            desired_kl: 0.01,
+        }
+    }
+}
+
+/// Where prior (expert) transitions come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PriorKind {
+    /// `assets/priors/*.json`, the trajectory-optimized tripod clips.
+    Dataset,
+    /// A synthetic tripod oscillation (tests and smoke runs only).
+    Synthetic,
+}
+
+/// AMP discriminator.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AmpConfig {
+    /// Discriminator hidden sizes.
+    pub discriminator_hidden: Vec<usize>,
+    /// Discriminator learning rate.
+    pub learning_rate: f64,
+    /// Gradient-penalty weight alpha_gp (penalty = alpha_gp / 2 * E|grad D|^2).
+    pub grad_penalty_weight: f32,
+    /// Weight of the discriminator loss in the joint update.
+    pub loss_coef: f32,
+    /// Policy transitions kept in the replay buffer.
+    pub replay_buffer_size: usize,
+    /// Prior source.
+    pub prior_kind: PriorKind,
+    /// Directory of the motion-prior clips (relative to the working directory).
+    pub priors_dir: String,
+}
+
+impl Default for AmpConfig {
+    fn default() -> Self {
+        Self {
+            discriminator_hidden: vec![1024, 512],
+            learning_rate: 1e-4,
+            grad_penalty_weight: 10.0,
+            loss_coef: 1.0,
+            replay_buffer_size: 100_000,
+            prior_kind: PriorKind::Dataset,
+            priors_dir: "assets/priors".into(),
+        }
+    }
+}
+
+/// The runner: iterations, logging, checkpoints.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RunnerConfig {
+    /// Name of the experiment (output directory name).
+    pub experiment_name: String,
+    /// Number of iterations (rollout + update).
+    pub max_iterations: usize,
+    /// Checkpoint every this many iterations (and at the end).
+    pub save_interval: usize,
+    /// Seed of the learner (initialization, sampling, minibatches).
+    pub seed: u64,
+    /// Learner threads (0: all cores).
+    pub num_threads: usize,
+}
+
+impl Default for RunnerConfig {
+    fn default() -> Self {
+        Self {
+            experiment_name: "hexapod".into(),
+            max_iterations: 1500,
+            save_interval: 50,
+            seed: 1,
+            num_threads: 0,
+        }
+    }
+}
+
+/// The complete training configuration.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrainConfig {
+    /// Environment.
+    pub env: EnvConfig,
+    /// Reward terms.
+    pub rewards: RewardConfig,
+    /// Networks.
+    pub policy: PolicyConfig,
+    /// PPO.
+    pub ppo: PpoConfig,
+    /// AMP.
+    pub amp: AmpConfig,
+    /// Runner.
+    pub runner: RunnerConfig,
+}
+
+impl TrainConfig {
+    /// Parses a TOML string (missing keys take their defaults, unknown keys are errors).
+    pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, ConfigError> {
+        let cfg: TrainConfig = toml::from_str(text)
+            .map_err(|e| ConfigError::Parse { path: origin.into(), message: e.to_string() })?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// Reads and validates a TOML file.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| ConfigError::Io { path: path.display().to_string(), source })?;
+        Self::from_toml_str(&text, &path.display().to_string())
+    }
+
+    /// The resolved configuration as TOML (every key written).
+    pub fn to_toml_string(&self) -> String {
+        toml::to_string_pretty(self).expect("the config is always representable in TOML")
+    }
+
+    /// Whether the discriminator is trained and its reward used.
+    pub fn amp_enabled(&self) -> bool {
+        self.rewards.style && self.rewards.style_weight != 0.0
+    }
+
+    /// Checks ranges that serde cannot.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let bad = |m: &str| Err(ConfigError::Invalid(m.into()));
+        let p = &self.ppo;
+        if self.env.num_envs == 0 {
+            return bad("env.num_envs must be positive");
+        }
+        if p.num_steps_per_env == 0 || p.num_learning_epochs == 0 || p.num_mini_batches == 0 {
+            return bad("ppo.num_steps_per_env, num_learning_epochs, num_mini_batches must be positive");
+        }
+        if (self.env.num_envs * p.num_steps_per_env) % p.num_mini_batches != 0 {
+            return bad("env.num_envs * ppo.num_steps_per_env must be divisible by ppo.num_mini_batches");
+        }
+        if !(0.0..=1.0).contains(&p.gamma) || !(0.0..=1.0).contains(&p.lam) {
+            return bad("ppo.gamma and ppo.lam must lie in [0, 1]");
+        }
+        if p.clip_param <= 0.0 || p.learning_rate <= 0.0 || p.max_grad_norm <= 0.0 {
+            return bad("ppo.clip_param, learning_rate and max_grad_norm must be positive");
+        }
+        if self.policy.init_noise_std <= 0.0 {
+            return bad("policy.init_noise_std must be positive");
+        }
+        let sizes = [
+            &self.policy.estimator_hidden,
+            &self.policy.memory_hidden,
+            &self.policy.actor_hidden,
+            &self.policy.critic_hidden,
+            &self.policy.privileged_encoder_hidden,
+            &self.policy.terrain_encoder_hidden,
+            &self.amp.discriminator_hidden,
+        ];
+        if sizes.iter().any(|h| h.contains(&0)) {
+            return bad("hidden sizes must be positive");
+        }
+        if self.policy.memory_latent == 0 || self.policy.privileged_latent == 0 || self.policy.terrain_latent == 0 {
+            return bad("latent sizes must be positive");
+        }
+        if self.amp_enabled() && self.amp.replay_buffer_size == 0 {
+            return bad("amp.replay_buffer_size must be positive");
+        }
+        if !self.rewards.task && !self.rewards.style && !self.rewards.penalties {
+            return bad("at least one reward term must be on");
+        }
+        if self.runner.save_interval == 0 {
+            return bad("runner.save_interval must be positive");
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_round_trip_through_toml() {
+        let cfg = TrainConfig::default();
+        let back = TrainConfig::from_toml_str(&cfg.to_toml_string(), "test").unwrap();
+        assert_eq!(cfg, back);
+    }
+
+    #[test]
+    fn unknown_keys_are_rejected_with_their_name() {
+        let err = TrainConfig::from_toml_str("[ppo]\nlearnig_rate = 1e-3\n", "x.toml").unwrap_err();
+        assert!(err.to_string().contains("learnig_rate"), "{err}");
+    }
+
+    #[test]
+    fn wrong_types_and_ranges_are_rejected() {
+        assert!(TrainConfig::from_toml_str("[env]\nnum_envs = \"many\"\n", "x").is_err());
+        assert!(TrainConfig::from_toml_str("[ppo]\ngamma = 1.5\n", "x").is_err());
+        let err = TrainConfig::from_toml_str("[env]\nnum_envs = 3\n[ppo]\nnum_mini_batches = 4\nnum_steps_per_env = 3\n", "x")
+            .unwrap_err();
+        assert!(err.to_string().contains("divisible"), "{err}");
+    }
+}

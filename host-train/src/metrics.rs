@@ -1,0 +1,155 @@
+//! Training metrics: one row per iteration, written as CSV (columns are the union of all
+//! keys seen) and drawn as PNG line plots, one file per group of related series.
+
+use plotters::prelude::*;
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+/// Plot groups: file stem and the key prefixes it draws.
+pub const PLOT_GROUPS: &[(&str, &[&str])] = &[
+    ("reward_terms", &["reward/", "episode/rew_"]),
+    ("episode_length", &["episode/length"]),
+    ("terrain_level", &["episode/terrain_level"]),
+    ("discriminator", &["amp/d_", "amp/style"]),
+    ("tracking_error", &["tracking/"]),
+    ("estimator_error", &["estimator/"]),
+    ("losses", &["loss/"]),
+    ("throughput", &["perf/env_steps_per_s"]),
+];
+
+/// All rows of a run.
+#[derive(Default)]
+pub struct MetricsLog {
+    rows: Vec<BTreeMap<String, f64>>,
+}
+
+impl MetricsLog {
+    /// An empty log.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Appends a row (must contain `iteration`).
+    pub fn push(&mut self, row: BTreeMap<String, f64>) {
+        self.rows.push(row);
+    }
+
+    /// The rows so far.
+    pub fn rows(&self) -> &[BTreeMap<String, f64>] {
+        &self.rows
+    }
+
+    fn columns(&self) -> Vec<String> {
+        let mut keys: BTreeSet<String> = BTreeSet::new();
+        for r in &self.rows {
+            keys.extend(r.keys().cloned());
+        }
+        keys.remove("iteration");
+        std::iter::once("iteration".to_string()).chain(keys).collect()
+    }
+
+    /// Writes every row as CSV (missing values empty).
+    pub fn write_csv(&self, path: &Path) -> std::io::Result<()> {
+        let cols = self.columns();
+        let mut out = cols.join(",");
+        out.push('\n');
+        for r in &self.rows {
+            let line: Vec<String> = cols.iter().map(|c| r.get(c).map(|v| format!("{v}")).unwrap_or_default()).collect();
+            out.push_str(&line.join(","));
+            out.push('\n');
+        }
+        std::fs::write(path, out)
+    }
+
+    /// Draws one PNG per non-empty plot group into `dir`; returns the files written.
+    pub fn plot(&self, dir: &Path) -> Result<Vec<PathBuf>, String> {
+        let mut written = Vec::new();
+        let cols = self.columns();
+        for (stem, prefixes) in PLOT_GROUPS {
+            let keys: Vec<&String> = cols.iter().filter(|c| prefixes.iter().any(|p| c.starts_with(p))).collect();
+            let series: Vec<(String, Vec<(f64, f64)>)> = keys
+                .iter()
+                .map(|k| {
+                    let pts = self
+                        .rows
+                        .iter()
+                        .filter_map(|r| Some((*r.get("iteration")?, *r.get(*k)?)))
+                        .filter(|(_, y)| y.is_finite())
+                        .collect();
+                    (k.to_string(), pts)
+                })
+                .filter(|(_, p): &(String, Vec<(f64, f64)>)| !p.is_empty())
+                .collect();
+            if series.is_empty() {
+                continue;
+            }
+            let path = dir.join(format!("{stem}.png"));
+            line_plot(&path, stem, "iteration", &series)?;
+            written.push(path);
+        }
+        Ok(written)
+    }
+}
+
+/// A line plot of named series into a PNG.
+pub fn line_plot(path: &Path, title: &str, x_label: &str, series: &[(String, Vec<(f64, f64)>)]) -> Result<(), String> {
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for (_, pts) in series {
+        for &(x, y) in pts {
+            x0 = x0.min(x);
+            x1 = x1.max(x);
+            y0 = y0.min(y);
+            y1 = y1.max(y);
+        }
+    }
+    if x1 <= x0 {
+        x1 = x0 + 1.0;
+    }
+    let pad = ((y1 - y0).abs() * 0.05).max(1e-3);
+    let root = BitMapBackend::new(path, (900, 540)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(60)
+        .build_cartesian_2d(x0..x1, (y0 - pad)..(y1 + pad))
+        .map_err(|e| e.to_string())?;
+    chart.configure_mesh().x_desc(x_label).draw().map_err(|e| e.to_string())?;
+    for (i, (name, pts)) in series.iter().enumerate() {
+        let color = Palette99::pick(i).to_rgba();
+        chart
+            .draw_series(LineSeries::new(pts.iter().copied(), color.stroke_width(2)))
+            .map_err(|e| e.to_string())?
+            .label(name.as_str())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| e.to_string())?;
+    root.present().map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn csv_has_the_union_of_columns() {
+        let mut log = MetricsLog::new();
+        log.push(BTreeMap::from([("iteration".into(), 0.0), ("loss/value".into(), 1.5)]));
+        log.push(BTreeMap::from([("iteration".into(), 1.0), ("episode/length".into(), 20.0)]));
+        let dir = std::env::temp_dir().join(format!("hexapod-metrics-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        log.write_csv(&dir.join("m.csv")).unwrap();
+        let text = std::fs::read_to_string(dir.join("m.csv")).unwrap();
+        assert_eq!(text, "iteration,episode/length,loss/value\n0,,1.5\n1,20,\n");
+        let files = log.plot(&dir).unwrap();
+        assert_eq!(files.len(), 2);
+        assert!(files.iter().all(|f| std::fs::metadata(f).unwrap().len() > 1000));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,133 @@
+//! An MLP with ELU between layers and a linear output; weights live under
+//! `<prefix>.layers.{k}.weight|bias` (shape `[out, in]`), the keys the code generator reads.
+
+use candle_core::{Result, Tensor};
+use candle_nn::{Linear, Module, VarBuilder};
+
+/// A multilayer perceptron: `Linear -> ELU -> ... -> Linear`.
+#[derive(Clone, Debug)]
+pub struct Mlp {
+    layers: Vec<Linear>,
+}
+
+impl Mlp {
+    /// Creates (or loads) an MLP `input -> hidden... -> output` under `vb`'s prefix.
+    pub fn new(input: usize, hidden: &[usize], output: usize, vb: VarBuilder) -> Result<Self> {
+        let mut sizes = Vec::with_capacity(hidden.len() + 2);
+        sizes.push(input);
+        sizes.extend_from_slice(hidden);
+        sizes.push(output);
+        let layers = sizes
+            .windows(2)
+            .enumerate()
+            .map(|(k, w)| candle_nn::linear(w[0], w[1], vb.pp(format!("layers.{k}"))))
+            .collect::<Result<Vec<_>>>()?;
+        Ok(Self { layers })
+    }
+
+    /// The linear layers in order.
+    pub fn layers(&self) -> &[Linear] {
+        &self.layers
+    }
+
+    /// Input size.
+    pub fn input_dim(&self) -> usize {
+        self.layers[0].weight().dims()[1]
+    }
+
+    /// Output size.
+    pub fn output_dim(&self) -> usize {
+        self.layers[self.layers.len() - 1].weight().dims()[0]
+    }
+
+    /// Forward pass `[B, in] -> [B, out]`.
+    pub fn forward(&self, x: &Tensor) -> Result<Tensor> {
+        let mut h = x.clone();
+        let last = self.layers.len() - 1;
+        for (k, layer) in self.layers.iter().enumerate() {
+            h = layer.forward(&h)?;
+            if k < last {
+                h = h.elu(1.0)?;
+            }
+        }
+        Ok(h)
+    }
+
+    /// Forward pass that also returns every hidden pre-activation `z_k` (before ELU), as the
+    /// explicit input gradient needs them.
+    pub fn forward_with_preactivations(&self, x: &Tensor) -> Result<(Tensor, Vec<Tensor>)> {
+        let mut h = x.clone();
+        let last = self.layers.len() - 1;
+        let mut pre = Vec::with_capacity(last);
+        for (k, layer) in self.layers.iter().enumerate() {
+            h = layer.forward(&h)?;
+            if k < last {
+                pre.push(h.clone());
+                h = h.elu(1.0)?;
+            }
+        }
+        Ok((h, pre))
+    }
+
+    /// Gradient of a scalar-output MLP with respect to its input, `[B, in]`, as an explicit
+    /// forward expression: `dy/dx = W_L diag(elu'(z_{L-1})) ... W_2 diag(elu'(z_1)) W_1`,
+    /// with `elu'(z) = exp(min(z, 0))`. It stays differentiable with respect to the weights,
+    /// so a gradient penalty built on it backpropagates exactly (no double backward needed).
+    pub fn input_gradient(&self, preactivations: &[Tensor]) -> Result<Tensor> {
+        let n = self.layers.len();
+        assert_eq!(preactivations.len(), n - 1, "one pre-activation per hidden layer");
+        assert_eq!(self.output_dim(), 1, "input_gradient needs a scalar output");
+        // g = dy/dh_{n-1}: the last weight row [1, H], broadcast over the batch by the product.
+        let mut g = self.layers[n - 1].weight().clone();
+        for k in (0..n - 1).rev() {
+            let dz = preactivations[k].minimum(0.0)?.exp()?;
+            g = dz.broadcast_mul(&g)?; // [B, H_k]: dy/dz_k
+            g = g.matmul(self.layers[k].weight())?; // [B, in_k]: dy/dh_{k-1}
+        }
+        Ok(g)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use candle_core::{DType, Device};
+    use candle_nn::VarMap;
+
+    #[test]
+    fn keys_follow_the_checkpoint_contract() {
+        let map = VarMap::new();
+        let vb = VarBuilder::from_varmap(&map, DType::F32, &Device::Cpu);
+        let mlp = Mlp::new(210, &[64, 32], 3, vb.pp("estimator")).unwrap();
+        let data = map.data().lock().unwrap();
+        let w = data.get("estimator.layers.0.weight").unwrap();
+        assert_eq!(w.dims(), &[64, 210]);
+        assert!(data.contains_key("estimator.layers.2.bias"));
+        assert_eq!(data.len(), 6);
+        assert_eq!((mlp.input_dim(), mlp.output_dim()), (210, 3));
+    }
+
+    #[test]
+    fn input_gradient_matches_finite_differences() {
+        let map = VarMap::new();
+        let vb = VarBuilder::from_varmap(&map, DType::F64, &Device::Cpu);
+        let mlp = Mlp::new(5, &[7, 6], 1, vb).unwrap();
+        let x0: Vec<f64> = (0..10).map(|i| ((i * 37 % 11) as f64 - 5.0) * 0.3).collect();
+        let x = Tensor::from_vec(x0.clone(), (2, 5), &Device::Cpu).unwrap();
+        let (_, pre) = mlp.forward_with_preactivations(&x).unwrap();
+        let g = mlp.input_gradient(&pre).unwrap().to_vec2::<f64>().unwrap();
+        let eps = 1e-6;
+        for b in 0..2 {
+            for i in 0..5 {
+                let eval = |d: f64| {
+                    let mut xs = x0.clone();
+                    xs[b * 5 + i] += d;
+                    let t = Tensor::from_vec(xs, (2, 5), &Device::Cpu).unwrap();
+                    mlp.forward(&t).unwrap().to_vec2::<f64>().unwrap()[b][0]
+                };
+                let fd = (eval(eps) - eval(-eps)) / (2.0 * eps);
+                assert!((fd - g[b][i]).abs() < 1e-6, "b {b} i {i}: fd {fd} explicit {}", g[b][i]);
+            }
+        }
+    }
+}

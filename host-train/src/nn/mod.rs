@@ -1,0 +1,5 @@
+//! Network building blocks: ELU MLPs, empirical normalization, the asymmetric actor-critic.
+
+pub mod actor_critic;
+pub mod mlp;
+pub mod normalizer;

@@ -9,6 +9,9 @@
 #![warn(missing_docs)]
 
 pub mod amp;
+pub mod can_frame;
+pub mod canopen;
+pub mod hal;
 pub mod kinematics;
 pub mod nets;
 pub mod nn;

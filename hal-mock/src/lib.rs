@@ -1,0 +1,17 @@
+//! `hal-mock`: host implementations of `hexapod-core`'s hardware traits for tests and
+//! software-in-the-loop runs.
+//!
+//! - [`bus::VirtualBus`]: in-memory CAN bus with frame loss, latency and bus-off;
+//! - [`drive::Drive`]: a CiA 402 drive emulator (NMT, SDO server, PDOs, power state
+//!   machine, heartbeat, EMCY) over a [`plant::JointPlant`];
+//! - [`rig::DriveRig`]: two buses with the robot's 18 drives;
+//! - [`imu::ImuModel`]: IMU readings from a simulated state, with noise, bias, staleness;
+//! - [`rc::RcSource`]: a CRSF receiver stream, with link loss;
+//! - [`candump`]: traffic logs in the candump format.
+
+pub mod bus;
+pub mod candump;
+pub mod drive;
+pub mod plant;
+pub mod rig;
+pub mod rng;

@@ -5,6 +5,11 @@
 //! the seam to the learner.
 #![warn(missing_docs)]
 
+pub mod config;
+pub mod env;
+pub mod frames;
+pub mod gait;
+pub mod rewards;
 pub mod robot;
 pub mod terrain;
 pub mod urdf_model;

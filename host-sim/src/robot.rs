@@ -76,6 +76,8 @@ pub struct RobotWorld {
     shanks: [ColliderHandle; NUM_LEGS],
     trunk: ColliderHandle,
     ground: ColliderHandle,
+    link_bodies: Vec<RigidBodyHandle>,
+    nominal_mass: Vec<MassProperties>,
     /// Drive parameters (randomized per episode in training).
     pub drives: DriveParams,
     /// Last applied joint torques, N m.
@@ -186,6 +188,13 @@ impl RobotWorld {
                 mb.damping_mut()[dof_of_joint[j]] = 0.0;
             }
         }
+        let link_bodies: Vec<RigidBodyHandle> = handles.links.iter().map(|l| l.body).collect();
+        let mut nominal_mass = Vec::with_capacity(link_bodies.len());
+        for h in &link_bodies {
+            let rb = &mut world.bodies[*h];
+            rb.recompute_mass_properties_from_colliders(&world.colliders);
+            nominal_mass.push(rb.mass_properties().local_mprops);
+        }
         let mut robot = Self {
             world,
             base,
@@ -199,6 +208,8 @@ impl RobotWorld {
             shanks,
             trunk,
             ground,
+            link_bodies,
+            nominal_mass,
             drives: DriveParams::default(),
             torque_nm: [0.0; NUM_JOINTS],
         };
@@ -361,8 +372,24 @@ impl RobotWorld {
 
     /// Scales the mass of every link and adds `payload_kg` to the trunk at `payload_offset_m`
     /// (base frame). Factors apply to the URDF's nominal values each call.
+    /// `link_mass_scale` has one factor per URDF link (in URDF order); missing ones are 1.
     pub fn set_mass_properties(&mut self, link_mass_scale: &[f32], payload_kg: f32, payload_offset_base_m: [f32; 3]) {
-        let _ = (link_mass_scale, payload_kg, payload_offset_base_m);
+        for (i, h) in self.link_bodies.iter().enumerate() {
+            let mut props = self.nominal_mass[i];
+            let scale = link_mass_scale.get(i).copied().unwrap_or(1.0);
+            props.set_mass(props.mass() * scale, true);
+            if *h == self.base && payload_kg > 0.0 {
+                props += MassProperties::new(Vector::from(payload_offset_base_m), payload_kg, Vector::ZERO);
+            }
+            let rb = &mut self.world.bodies[*h];
+            rb.set_additional_mass_properties(props, true);
+            rb.recompute_mass_properties_from_colliders(&self.world.colliders);
+        }
+    }
+
+    /// Number of links (URDF order), for per-link randomization.
+    pub fn num_links(&self) -> usize {
+        self.link_bodies.len()
     }
 
     /// Changes the base velocity by `dv_world_m_s` (a push).
@@ -412,6 +439,17 @@ mod tests {
     }
 
     #[test]
+    fn payload_and_mass_scale_change_total_mass() {
+        let mut r = flat_robot();
+        let n = r.num_links();
+        r.set_mass_properties(&vec![1.1; n], 5.0, [0.15, -0.15, 0.0]);
+        let m = r.total_mass_kg();
+        assert!((m - (TOTAL_MASS_KG * 1.1 + 5.0)).abs() < 1e-3, "{m}");
+        r.set_mass_properties(&[], 0.0, [0.0; 3]);
+        assert!((r.total_mass_kg() - TOTAL_MASS_KG).abs() < 1e-3);
+    }
+
+    #[test]
     fn reset_places_joints() {
         let mut r = flat_robot();
         let mut q = Q0_RAD;
@@ -440,5 +478,32 @@ mod tests {
         let total_fz: f32 = c.foot_force_world_n.iter().map(|f| f[2]).sum();
         assert!((total_fz - TOTAL_MASS_KG * 9.81).abs() < 0.1 * TOTAL_MASS_KG * 9.81, "fz {total_fz}");
         assert!(!c.trunk);
+    }
+}
+
+#[cfg(test)]
+mod gait_tests {
+    use super::*;
+    use crate::gait::TripodGait;
+    use crate::terrain::{Terrain, TerrainConfig};
+    use crate::urdf_model::{default_urdf_path, UrdfModel};
+
+    #[test]
+    fn scripted_tripod_gait_walks_forward_upright() {
+        let model = UrdfModel::load(&default_urdf_path()).unwrap();
+        let ground = Terrain::generate(&TerrainConfig::default()).collider();
+        let mut r = RobotWorld::new(&model, ground, 1).unwrap();
+        let gait = TripodGait::default();
+        for k in 0..2000 {
+            r.step(&gait.joint_targets(k as f32 * PHYSICS_DT_S));
+        }
+        let s = r.state();
+        let [x, y, z] = s.base_pos_world_m;
+        eprintln!("after 10 s: x {x:.3} y {y:.3} z {z:.3}");
+        assert!(x > 0.5 * 0.2 * 10.0 && x < 1.5 * 0.2 * 10.0, "x {x}");
+        assert!(y.abs() < 0.3, "y {y}");
+        assert!((z - 0.3).abs() < 0.05, "z {z}");
+        let [qx, qy, _, _] = s.base_quat_xyzw;
+        assert!(qx.abs() < 0.05 && qy.abs() < 0.05);
     }
 }

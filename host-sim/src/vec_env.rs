@@ -24,8 +24,9 @@ pub struct Observations {
 pub struct StepResult {
     /// Observations after the step (after the reset, for robots that were reset).
     pub obs: Observations,
-    /// Task and regularization reward `[N]` (the style reward is the learner's: it owns
-    /// the discriminator).
+    /// Task and regularization reward `[N]`, each term already multiplied by the policy
+    /// period (legged_gym's convention). The style reward is the learner's (it owns the
+    /// discriminator) and should be weighted by the policy period the same way.
     pub rewards: Vec<f32>,
     /// `[N]` true where the episode ended (termination or time-out) and the robot was reset.
     pub dones: Vec<bool>,
@@ -36,7 +37,8 @@ pub struct StepResult {
     pub amp_next: Vec<f32>,
     /// `[N]` true where the actions contained NaN or infinity (those robots were reset).
     pub invalid_actions: Vec<bool>,
-    /// Episode statistics of robots that finished an episode in this step.
+    /// Means over the robots that finished an episode in this step: `rew_<term>` (sum over
+    /// the episode / episode length in s), `episode_length_s`, `terrain_level`.
     pub episode_log: Vec<(String, f32)>,
 }
 

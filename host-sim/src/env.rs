@@ -1,0 +1,537 @@
+//! The vectorized hexapod environment: N robots, each in its own rapier world, stepped in
+//! parallel (rayon). Implements [`VecEnv`]: observations, rewards, terminations, time-outs,
+//! domain randomization, pushes, command sampling and the terrain curriculum.
+
+use crate::config::{ConfigError, EnvConfig};
+use crate::frames::{quat_from_yaw, rotate, rotate_inverse, yaw_rad};
+use crate::rewards::{self, RewardInputs, TERM_NAMES};
+use crate::robot::{BuildError, ContactState, DriveParams, RobotState, RobotWorld};
+use crate::terrain::Terrain;
+use crate::urdf_model::{UrdfError, UrdfModel};
+use crate::vec_env::{Observations, StepResult, VecEnv};
+use hexapod_core::amp::{amp_state, AMP_STATE_DIM};
+use hexapod_core::obs::{
+    actor_obs, height_scan_point_m, proprio_noise_scale, proprio_obs, ProprioHistory,
+    ACTION_CLIP, ACTOR_OBS_DIM, CONTACT_FORCE_SCALE, HEIGHT_SCALE, HEIGHT_SCAN_DIM,
+    HEIGHT_SCAN_OFFSET_M, HISTORY_DIM, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_BASE_HEIGHT,
+    PRIV_COLLISIONS, PRIV_CONTACT_FORCES, PRIV_FRICTION, PRIV_LIN_VEL, PRIV_PERTURBATION,
+    PROPRIO_DIM,
+};
+use hexapod_core::robot::{
+    NUM_JOINTS, NUM_LEGS, Q0_RAD, Q_MAX_RAD, Q_MIN_RAD, TORQUE_LIMIT_NM, VELOCITY_LIMIT_RAD_S,
+};
+use hexapod_core::timing::{
+    ACTION_SCALE_RAD, CSP_KP1_PER_S, CSP_KP2_NMS_PER_RAD, DECIMATION, POLICY_DT_S,
+};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use std::sync::Arc;
+
+/// Nominal joint stiffness (Kp1 * Kp2), N m/rad.
+const NOMINAL_STIFFNESS_NM_PER_RAD: f32 = CSP_KP1_PER_S * CSP_KP2_NMS_PER_RAD;
+/// Spawn height above the terrain, m (the robot settles onto its feet).
+const SPAWN_HEIGHT_M: f32 = 0.33;
+/// A foot counts as in contact above this normal force, N.
+pub const CONTACT_THRESHOLD_N: f32 = 1.0;
+
+/// Why an environment could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum EnvError {
+    /// Bad config.
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// Bad URDF.
+    #[error(transparent)]
+    Urdf(#[from] UrdfError),
+    /// URDF without the expected structure.
+    #[error(transparent)]
+    Build(#[from] BuildError),
+}
+
+/// One robot with its episode bookkeeping.
+struct Slot {
+    robot: RobotWorld,
+    rng: ChaCha8Rng,
+    terrain: Arc<Terrain>,
+    level: usize,
+    column: usize,
+    origin_m: [f32; 2],
+    command: [f32; 3],
+    action: [f32; NUM_JOINTS],
+    prev_action: [f32; NUM_JOINTS],
+    last_qdot: [f32; NUM_JOINTS],
+    history: ProprioHistory,
+    step: usize,
+    friction: f32,
+    last_push_m_s: [f32; 3],
+    term_sums: [f32; TERM_NAMES.len()],
+    actor: [f32; ACTOR_OBS_DIM],
+    privileged: [f32; PRIVILEGED_DIM],
+    heights: [f32; HEIGHT_SCAN_DIM],
+    amp: [f32; AMP_STATE_DIM],
+    state: RobotState,
+    contacts: ContactState,
+}
+
+/// What one robot's step produced.
+struct SlotStep {
+    reward: f32,
+    done: bool,
+    time_out: bool,
+    invalid: bool,
+    amp_next: [f32; AMP_STATE_DIM],
+    episode: Option<Vec<(String, f32)>>,
+}
+
+/// N simulated hexapods.
+pub struct HexapodEnv {
+    config: EnvConfig,
+    slots: Vec<Slot>,
+    max_episode_steps: usize,
+}
+
+impl HexapodEnv {
+    /// Builds the environment from a config and the shipped URDF.
+    pub fn new(config: EnvConfig) -> Result<Self, EnvError> {
+        let model = UrdfModel::load(&crate::urdf_model::default_urdf_path())?;
+        Self::with_model(config, &model)
+    }
+
+    /// Builds the environment from a config and a robot model.
+    pub fn with_model(config: EnvConfig, model: &UrdfModel) -> Result<Self, EnvError> {
+        config.validate("env config")?;
+        let terrain = Arc::new(Terrain::generate(&config.terrain));
+        let ground = terrain.collider();
+        let max_episode_steps = (config.episode_length_s / POLICY_DT_S).round() as usize;
+        let slots: Result<Vec<Slot>, EnvError> = (0..config.num_envs)
+            .map(|i| {
+                let robot = RobotWorld::new(model, ground.clone(), config.solver_iterations)?;
+                let mut rng = ChaCha8Rng::seed_from_u64(config.seed.wrapping_mul(0x9E37_79B9).wrapping_add(i as u64));
+                let columns = config.terrain.columns.len().max(1);
+                let level = if config.terrain.tiles {
+                    rng.gen_range(0..=config.max_initial_level.min(config.terrain.rows - 1))
+                } else {
+                    0
+                };
+                Ok(Slot {
+                    robot,
+                    rng,
+                    terrain: terrain.clone(),
+                    level,
+                    column: i % columns,
+                    origin_m: [0.0; 2],
+                    command: [0.0; 3],
+                    action: [0.0; NUM_JOINTS],
+                    prev_action: [0.0; NUM_JOINTS],
+                    last_qdot: [0.0; NUM_JOINTS],
+                    history: ProprioHistory::filled_with(&[0.0; PROPRIO_DIM]),
+                    step: 0,
+                    friction: 1.0,
+                    last_push_m_s: [0.0; 3],
+                    term_sums: [0.0; TERM_NAMES.len()],
+                    actor: [0.0; ACTOR_OBS_DIM],
+                    privileged: [0.0; PRIVILEGED_DIM],
+                    heights: [0.0; HEIGHT_SCAN_DIM],
+                    amp: [0.0; AMP_STATE_DIM],
+                    state: RobotState::default(),
+                    contacts: ContactState::default(),
+                })
+            })
+            .collect();
+        Ok(Self { config, slots: slots?, max_episode_steps })
+    }
+
+    /// The config in force.
+    pub fn config(&self) -> &EnvConfig {
+        &self.config
+    }
+
+    /// Kinematic state of robot `i`.
+    pub fn robot_state(&self, i: usize) -> RobotState {
+        self.slots[i].state
+    }
+
+    /// Contacts of robot `i` after the last step.
+    pub fn contacts(&self, i: usize) -> ContactState {
+        self.slots[i].contacts
+    }
+
+    /// Feet on the ground (bit i = leg i) of robot `i`.
+    pub fn foot_contact_mask(&self, i: usize) -> u8 {
+        let c = &self.slots[i].contacts;
+        (0..NUM_LEGS).filter(|&l| c.foot_force_world_n[l][2] > CONTACT_THRESHOLD_N).fold(0, |m, l| m | (1 << l))
+    }
+
+    /// Command of robot `i`.
+    pub fn command(&self, i: usize) -> [f32; 3] {
+        self.slots[i].command
+    }
+
+    /// Overrides the command of robot `i` (evaluation, play); observations follow at the next step.
+    pub fn set_command(&mut self, i: usize, command: [f32; 3]) {
+        self.slots[i].command = command;
+    }
+
+    /// Terrain level (row) of robot `i`.
+    pub fn terrain_level(&self, i: usize) -> usize {
+        self.slots[i].level
+    }
+
+    /// Joint torques of robot `i` in the last physics step, N m.
+    pub fn torque_nm(&self, i: usize) -> [f32; NUM_JOINTS] {
+        self.slots[i].robot.torque_nm
+    }
+
+    /// Pushes robot `i`: adds `dv_world_m_s` to its base velocity.
+    pub fn push(&mut self, i: usize, dv_world_m_s: [f32; 3]) {
+        let slot = &mut self.slots[i];
+        slot.robot.push(dv_world_m_s);
+        slot.last_push_m_s = dv_world_m_s;
+    }
+
+    fn gather(&self) -> Observations {
+        let n = self.slots.len();
+        let mut obs = Observations {
+            actor: Vec::with_capacity(n * ACTOR_OBS_DIM),
+            history: Vec::with_capacity(n * HISTORY_DIM),
+            privileged: Vec::with_capacity(n * PRIVILEGED_DIM),
+            heights: Vec::with_capacity(n * HEIGHT_SCAN_DIM),
+            amp: Vec::with_capacity(n * AMP_STATE_DIM),
+        };
+        for s in &self.slots {
+            obs.actor.extend_from_slice(&s.actor);
+            obs.history.extend_from_slice(&s.history.flatten());
+            obs.privileged.extend_from_slice(&s.privileged);
+            obs.heights.extend_from_slice(&s.heights);
+            obs.amp.extend_from_slice(&s.amp);
+        }
+        obs
+    }
+}
+
+impl VecEnv for HexapodEnv {
+    fn num_envs(&self) -> usize {
+        self.slots.len()
+    }
+
+    fn reset(&mut self) -> Observations {
+        let config = &self.config;
+        self.slots.par_iter_mut().for_each(|s| {
+            s.reset(config);
+        });
+        self.gather()
+    }
+
+    fn step(&mut self, actions: &[f32]) -> StepResult {
+        let n = self.slots.len();
+        assert_eq!(actions.len(), n * NUM_JOINTS, "actions must be [num_envs, 18]");
+        let config = &self.config;
+        let max_steps = self.max_episode_steps;
+        let outs: Vec<SlotStep> = self
+            .slots
+            .par_iter_mut()
+            .zip(actions.par_chunks(NUM_JOINTS))
+            .map(|(slot, a)| slot.step(config, a, max_steps))
+            .collect();
+        let mut result = StepResult {
+            obs: self.gather(),
+            rewards: Vec::with_capacity(n),
+            dones: Vec::with_capacity(n),
+            time_outs: Vec::with_capacity(n),
+            amp_next: Vec::with_capacity(n * AMP_STATE_DIM),
+            invalid_actions: Vec::with_capacity(n),
+            episode_log: Vec::new(),
+        };
+        let mut finished = 0usize;
+        let mut sums: Vec<(String, f32)> = Vec::new();
+        for o in outs {
+            result.rewards.push(o.reward);
+            result.dones.push(o.done);
+            result.time_outs.push(o.time_out);
+            result.invalid_actions.push(o.invalid);
+            result.amp_next.extend_from_slice(&o.amp_next);
+            if let Some(log) = o.episode {
+                finished += 1;
+                if sums.is_empty() {
+                    sums = log;
+                } else {
+                    for (acc, (_, v)) in sums.iter_mut().zip(log) {
+                        acc.1 += v;
+                    }
+                }
+            }
+        }
+        if finished > 0 {
+            result.episode_log = sums.into_iter().map(|(k, v)| (k, v / finished as f32)).collect();
+            let mean_level = self.slots.iter().map(|s| s.level as f32).sum::<f32>() / n as f32;
+            result.episode_log.push(("terrain_level".into(), mean_level));
+        }
+        result
+    }
+}
+
+fn uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f32; 2]) -> f32 {
+    if hi > lo {
+        rng.gen_range(lo..hi)
+    } else {
+        lo
+    }
+}
+
+impl Slot {
+    fn sample_command(&mut self, config: &EnvConfig) {
+        let c = &config.commands;
+        self.command = if self.rng.gen::<f32>() < c.zero_probability {
+            [0.0; 3]
+        } else {
+            [
+                uniform(&mut self.rng, c.lin_vel_x_m_s),
+                uniform(&mut self.rng, c.lin_vel_y_m_s),
+                uniform(&mut self.rng, c.ang_vel_z_rad_s),
+            ]
+        };
+    }
+
+    fn update_curriculum(&mut self, config: &EnvConfig) {
+        if !(config.curriculum && config.terrain.tiles) {
+            return;
+        }
+        let p = self.state.base_pos_world_m;
+        let walked_m = ((p[0] - self.origin_m[0]).powi(2) + (p[1] - self.origin_m[1]).powi(2)).sqrt();
+        let commanded_m = (self.command[0].powi(2) + self.command[1].powi(2)).sqrt() * config.episode_length_s;
+        let rows = config.terrain.rows;
+        if walked_m > config.terrain.tile_size_m / 2.0 {
+            self.level += 1;
+            if self.level >= rows {
+                self.level = self.rng.gen_range(0..rows);
+            }
+        } else if walked_m < 0.5 * commanded_m && self.level > 0 {
+            self.level -= 1;
+        }
+    }
+
+    fn randomize(&mut self, config: &EnvConfig) {
+        let r = &config.randomization;
+        if !r.enabled {
+            self.robot.drives = DriveParams::default();
+            self.friction = 1.0;
+            self.robot.set_foot_friction(1.0);
+            self.robot.set_mass_properties(&[], 0.0, [0.0; 3]);
+            return;
+        }
+        let mut drives = DriveParams::default();
+        for j in 0..NUM_JOINTS {
+            let stiffness = NOMINAL_STIFFNESS_NM_PER_RAD * uniform(&mut self.rng, r.stiffness_factor);
+            let damping = CSP_KP2_NMS_PER_RAD * uniform(&mut self.rng, r.damping_factor);
+            drives.kp2_nms_per_rad[j] = damping;
+            drives.kp1_per_s[j] = stiffness / damping;
+            drives.motor_strength[j] = uniform(&mut self.rng, r.motor_strength);
+        }
+        self.robot.drives = drives;
+        self.friction = uniform(&mut self.rng, r.friction);
+        self.robot.set_foot_friction(self.friction);
+        let scales: Vec<f32> = (0..self.robot.num_links()).map(|_| uniform(&mut self.rng, r.link_mass_factor)).collect();
+        let payload = uniform(&mut self.rng, r.payload_kg);
+        let off = r.payload_offset_m;
+        let offset = [uniform(&mut self.rng, [-off, off]), uniform(&mut self.rng, [-off, off]), 0.0];
+        self.robot.set_mass_properties(&scales, payload, offset);
+    }
+
+    fn reset(&mut self, config: &EnvConfig) {
+        self.randomize(config);
+        let [cx, cy] = self.terrain.tile_center_m(self.level, self.column);
+        let spread = if config.terrain.tiles { 1.0 } else { 0.0 };
+        let x = cx + uniform(&mut self.rng, [-spread, spread]);
+        let y = cy + uniform(&mut self.rng, [-spread, spread]);
+        self.origin_m = [x, y];
+        let yaw = uniform(&mut self.rng, [-std::f32::consts::PI, std::f32::consts::PI]);
+        let mut q = Q0_RAD;
+        if config.randomization.enabled {
+            for j in 0..NUM_JOINTS {
+                q[j] = (Q0_RAD[j] * uniform(&mut self.rng, config.randomization.initial_joint_pos_factor))
+                    .clamp(Q_MIN_RAD[j], Q_MAX_RAD[j]);
+            }
+        }
+        let z = self.terrain.height_at_m(x, y) + SPAWN_HEIGHT_M;
+        self.robot.reset([x, y, z], quat_from_yaw(yaw), &q);
+        self.sample_command(config);
+        self.action = [0.0; NUM_JOINTS];
+        self.prev_action = [0.0; NUM_JOINTS];
+        self.last_qdot = [0.0; NUM_JOINTS];
+        self.step = 0;
+        self.last_push_m_s = [0.0; 3];
+        self.term_sums = [0.0; TERM_NAMES.len()];
+        self.state = self.robot.state();
+        self.contacts = ContactState::default();
+        let proprio = self.proprio(config);
+        self.history = ProprioHistory::filled_with(&proprio);
+        self.observe(proprio);
+    }
+
+    /// o^p of the current state, with noise when configured.
+    fn proprio(&mut self, config: &EnvConfig) -> [f32; PROPRIO_DIM] {
+        let s = &self.state;
+        let ang_vel = rotate_inverse(s.base_quat_xyzw, s.base_ang_vel_world_rad_s);
+        let gravity = rotate_inverse(s.base_quat_xyzw, [0.0, 0.0, -1.0]);
+        let mut o = proprio_obs(ang_vel, gravity, &s.q_rad, &s.qdot_rad_s);
+        if config.observation_noise {
+            let scale = proprio_noise_scale();
+            for (x, n) in o.iter_mut().zip(scale) {
+                *x += n * self.rng.gen_range(-1.0f32..1.0);
+            }
+        }
+        o
+    }
+
+    fn base_height_m(&self) -> f32 {
+        let p = self.state.base_pos_world_m;
+        p[2] - self.terrain.height_at_m(p[0], p[1])
+    }
+
+    /// Fills the observation buffers from the current state (history already updated).
+    fn observe(&mut self, proprio: [f32; PROPRIO_DIM]) {
+        let s = self.state;
+        let lin_vel = rotate_inverse(s.base_quat_xyzw, s.base_lin_vel_world_m_s);
+        let ang_vel = rotate_inverse(s.base_quat_xyzw, s.base_ang_vel_world_rad_s);
+        let height = self.base_height_m();
+        self.actor = actor_obs(self.command, &self.prev_action, &proprio);
+        // Privileged state.
+        let p = &mut self.privileged;
+        for k in 0..3 {
+            p[PRIV_LIN_VEL.start + k] = lin_vel[k] * LIN_VEL_SCALE;
+        }
+        p[PRIV_BASE_HEIGHT] = height;
+        p[PRIV_FRICTION] = self.friction;
+        for leg in 0..NUM_LEGS {
+            for k in 0..3 {
+                p[PRIV_CONTACT_FORCES.start + 3 * leg + k] =
+                    self.contacts.foot_force_world_n[leg][k] * CONTACT_FORCE_SCALE;
+            }
+        }
+        let push = self.last_push_m_s;
+        let norm = (push[0] * push[0] + push[1] * push[1] + push[2] * push[2]).sqrt();
+        for k in 0..3 {
+            p[PRIV_PERTURBATION.start + k] = push[k];
+            p[PRIV_PERTURBATION.start + 3 + k] = if norm > 1e-6 { push[k] / norm } else { 0.0 };
+        }
+        p[PRIV_COLLISIONS.start] = self.contacts.trunk as u8 as f32;
+        for leg in 0..NUM_LEGS {
+            p[PRIV_COLLISIONS.start + 1 + leg] = self.contacts.thighs[leg] as u8 as f32;
+            p[PRIV_COLLISIONS.start + 7 + leg] = self.contacts.shanks[leg] as u8 as f32;
+        }
+        // Height scan in the yaw-aligned frame.
+        let yaw = yaw_rad(s.base_quat_xyzw);
+        let (sin, cos) = yaw.sin_cos();
+        let [bx, by, bz] = s.base_pos_world_m;
+        for k in 0..HEIGHT_SCAN_DIM {
+            let [px, py] = height_scan_point_m(k);
+            let h = self.terrain.height_at_m(bx + cos * px - sin * py, by + sin * px + cos * py);
+            self.heights[k] = (bz - HEIGHT_SCAN_OFFSET_M - h).clamp(-1.0, 1.0) * HEIGHT_SCALE;
+        }
+        self.amp = amp_state(&s.q_rad, &s.qdot_rad_s, lin_vel, ang_vel, height);
+    }
+
+    fn step(&mut self, config: &EnvConfig, action: &[f32], max_steps: usize) -> SlotStep {
+        let invalid = action.iter().any(|a| !a.is_finite());
+        if invalid {
+            let amp_next = self.amp;
+            let episode = Some(self.episode_log(config));
+            self.reset(config);
+            return SlotStep { reward: 0.0, done: true, time_out: false, invalid, amp_next, episode };
+        }
+        for j in 0..NUM_JOINTS {
+            self.action[j] = action[j].clamp(-ACTION_CLIP, ACTION_CLIP);
+        }
+        let mut q_target = [0.0; NUM_JOINTS];
+        for j in 0..NUM_JOINTS {
+            q_target[j] = Q0_RAD[j] + ACTION_SCALE_RAD * self.action[j];
+        }
+        for _ in 0..DECIMATION {
+            self.robot.step(&q_target);
+        }
+        self.step += 1;
+        self.state = self.robot.state();
+        self.contacts = self.robot.contacts();
+        let s = self.state;
+        let lin_vel = rotate_inverse(s.base_quat_xyzw, s.base_lin_vel_world_m_s);
+        let ang_vel = rotate_inverse(s.base_quat_xyzw, s.base_ang_vel_world_rad_s);
+        let mut qddot = [0.0; NUM_JOINTS];
+        for j in 0..NUM_JOINTS {
+            qddot[j] = (s.qdot_rad_s[j] - self.last_qdot[j]) / POLICY_DT_S;
+        }
+        let collisions = self.contacts.thighs.iter().chain(self.contacts.shanks.iter()).filter(|c| **c).count() as u32;
+        let terms = rewards::compute(
+            &config.rewards,
+            &RewardInputs {
+                command: self.command,
+                lin_vel_base_m_s: lin_vel,
+                ang_vel_base_rad_s: ang_vel,
+                torque_nm: &self.robot.torque_nm,
+                torque_limit_nm: &TORQUE_LIMIT_NM,
+                qdot_rad_s: &s.qdot_rad_s,
+                velocity_limit_rad_s: &VELOCITY_LIMIT_RAD_S,
+                qddot_rad_s2: &qddot,
+                action: &self.action,
+                prev_action: &self.prev_action,
+                collisions,
+                foot_force_n: &self.contacts.foot_force_world_n,
+            },
+            POLICY_DT_S,
+        );
+        for (acc, v) in self.term_sums.iter_mut().zip(terms.values) {
+            *acc += v;
+        }
+        let gravity = rotate_inverse(s.base_quat_xyzw, [0.0, 0.0, -1.0]);
+        let finite = s.base_pos_world_m.iter().chain(s.q_rad.iter()).chain(s.qdot_rad_s.iter()).all(|x| x.is_finite());
+        let terminated = self.contacts.trunk
+            || gravity[2] > -config.max_tilt_deg.to_radians().cos()
+            || !finite;
+        let time_out = self.step >= max_steps;
+        let done = terminated || time_out;
+        let height = self.base_height_m();
+        let amp_next = amp_state(&s.q_rad, &s.qdot_rad_s, lin_vel, ang_vel, height);
+        self.last_qdot = s.qdot_rad_s;
+        self.prev_action = self.action;
+
+        if done {
+            let episode = Some(self.episode_log(config));
+            self.update_curriculum(config);
+            self.reset(config);
+            return SlotStep { reward: terms.total(), done, time_out: time_out && !terminated, invalid, amp_next, episode };
+        }
+        // Pushes and command resampling.
+        let push_every = (config.push.interval_s / POLICY_DT_S).round().max(1.0) as usize;
+        if config.push.enabled && self.step % push_every == 0 {
+            let m = config.push.max_vel_xy_m_s;
+            let dv = [uniform(&mut self.rng, [-m, m]), uniform(&mut self.rng, [-m, m]), 0.0];
+            self.robot.push(dv);
+            self.last_push_m_s = dv;
+        }
+        let resample_every = (config.commands.resampling_time_s / POLICY_DT_S).round().max(1.0) as usize;
+        if self.step % resample_every == 0 {
+            self.sample_command(config);
+        }
+        let proprio = self.proprio(config);
+        self.history.push(&proprio);
+        self.observe(proprio);
+        SlotStep { reward: terms.total(), done, time_out: false, invalid, amp_next, episode: None }
+    }
+
+    fn episode_log(&self, config: &EnvConfig) -> Vec<(String, f32)> {
+        let _ = config;
+        let length_s = (self.step.max(1)) as f32 * POLICY_DT_S;
+        let mut log: Vec<(String, f32)> = TERM_NAMES
+            .iter()
+            .zip(self.term_sums)
+            .map(|(name, sum)| (format!("rew_{name}"), sum / length_s))
+            .collect();
+        log.push(("episode_length_s".into(), length_s));
+        log
+    }
+}
+
+/// World-frame velocity of a base-frame vector (re-exported helper for tools).
+pub fn base_to_world(q_xyzw: [f32; 4], v_base: [f32; 3]) -> [f32; 3] {
+    rotate(q_xyzw, v_base)
+}

@@ -1,0 +1,235 @@
+//! The rewards of the paper's Table I (task r_g and regularization r_l; the style reward
+//! r_s belongs to the learner, which owns the discriminator).
+//!
+//! As in legged_gym, each term is multiplied by its scale and by the policy period
+//! (`POLICY_DT_S`), so sums over an episode do not depend on the control rate. A scale of
+//! zero switches a term off; `task` and `regularization` switch whole groups (the paper's
+//! ablations g+s, g+l, g+s+l).
+
+use hexapod_core::robot::{NUM_JOINTS, NUM_LEGS};
+use serde::{Deserialize, Serialize};
+
+/// Scales of the reward terms (the paper's values by default).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RewardScales {
+    /// Include the task terms r_g.
+    pub task: bool,
+    /// Include the regularization terms r_l.
+    pub regularization: bool,
+    /// exp(-|v_xy - v_xy_des|^2 / sigma).
+    pub tracking_lin_vel: f32,
+    /// exp(-(w_z - w_z_des)^2 / sigma).
+    pub tracking_ang_vel: f32,
+    /// Tracking kernel width sigma, (m/s)^2 and (rad/s)^2.
+    pub tracking_sigma: f32,
+    /// v_z^2.
+    pub lin_vel_z: f32,
+    /// |w_xy|^2.
+    pub ang_vel_xy: f32,
+    /// |tau|^2.
+    pub torques: f32,
+    /// |qddot|^2.
+    pub joint_acc: f32,
+    /// |a_t - a_t-1|^2.
+    pub action_rate: f32,
+    /// Number of thighs and shanks touching the ground.
+    pub collision: f32,
+    /// Sum of torque above `soft_torque_limit` x limit, N m.
+    pub torque_limits: f32,
+    /// Sum of joint speed above `soft_velocity_limit` x limit (each clipped at 1), rad/s.
+    pub joint_vel_limits: f32,
+    /// Sum of foot force above `max_contact_force_n`, N.
+    pub contact_forces: f32,
+    /// Fraction of the torque limit where the penalty starts.
+    pub soft_torque_limit: f32,
+    /// Fraction of the velocity limit where the penalty starts.
+    pub soft_velocity_limit: f32,
+    /// Foot force where the penalty starts, N.
+    pub max_contact_force_n: f32,
+}
+
+impl Default for RewardScales {
+    fn default() -> Self {
+        Self {
+            task: true,
+            regularization: true,
+            tracking_lin_vel: 1.0,
+            tracking_ang_vel: 0.5,
+            tracking_sigma: 0.15,
+            lin_vel_z: -1.0,
+            ang_vel_xy: -0.08,
+            torques: -2e-6,
+            joint_acc: -1.5e-7,
+            action_rate: -0.01,
+            collision: -0.05,
+            torque_limits: -0.05,
+            joint_vel_limits: -0.5,
+            contact_forces: -0.1,
+            soft_torque_limit: 0.8,
+            soft_velocity_limit: 0.9,
+            max_contact_force_n: 150.0,
+        }
+    }
+}
+
+/// Names of the terms, in the order of [`RewardTerms::values`].
+pub const TERM_NAMES: [&str; 11] = [
+    "tracking_lin_vel",
+    "tracking_ang_vel",
+    "lin_vel_z",
+    "ang_vel_xy",
+    "torques",
+    "joint_acc",
+    "action_rate",
+    "collision",
+    "torque_limits",
+    "joint_vel_limits",
+    "contact_forces",
+];
+
+/// What the rewards are computed from (one policy step, one robot).
+pub struct RewardInputs<'a> {
+    /// Command (vx, vy, wz).
+    pub command: [f32; 3],
+    /// Base linear velocity, base frame, m/s.
+    pub lin_vel_base_m_s: [f32; 3],
+    /// Base angular velocity, base frame, rad/s.
+    pub ang_vel_base_rad_s: [f32; 3],
+    /// Joint torques, N m.
+    pub torque_nm: &'a [f32; NUM_JOINTS],
+    /// Joint torque limits, N m.
+    pub torque_limit_nm: &'a [f32; NUM_JOINTS],
+    /// Joint velocities, rad/s.
+    pub qdot_rad_s: &'a [f32; NUM_JOINTS],
+    /// Joint velocity limits, rad/s.
+    pub velocity_limit_rad_s: &'a [f32; NUM_JOINTS],
+    /// Joint accelerations, rad/s^2.
+    pub qddot_rad_s2: &'a [f32; NUM_JOINTS],
+    /// Action and previous action.
+    pub action: &'a [f32; NUM_JOINTS],
+    /// Previous action.
+    pub prev_action: &'a [f32; NUM_JOINTS],
+    /// Thighs and shanks touching the ground.
+    pub collisions: u32,
+    /// Foot forces, N.
+    pub foot_force_n: &'a [[f32; 3]; NUM_LEGS],
+}
+
+/// The weighted terms of one step (already multiplied by scale and dt).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RewardTerms {
+    /// In the order of [`TERM_NAMES`].
+    pub values: [f32; 11],
+}
+
+impl RewardTerms {
+    /// Sum of all terms.
+    pub fn total(&self) -> f32 {
+        self.values.iter().sum()
+    }
+}
+
+fn sq(v: &[f32]) -> f32 {
+    v.iter().map(|x| x * x).sum()
+}
+
+/// Computes the weighted reward terms of one policy step of length `dt_s`.
+pub fn compute(scales: &RewardScales, x: &RewardInputs, dt_s: f32) -> RewardTerms {
+    let mut raw = [0.0f32; 11];
+    let lin_err = (x.lin_vel_base_m_s[0] - x.command[0]).powi(2)
+        + (x.lin_vel_base_m_s[1] - x.command[1]).powi(2);
+    raw[0] = (-lin_err / scales.tracking_sigma).exp();
+    raw[1] = (-(x.ang_vel_base_rad_s[2] - x.command[2]).powi(2) / scales.tracking_sigma).exp();
+    raw[2] = x.lin_vel_base_m_s[2].powi(2);
+    raw[3] = x.ang_vel_base_rad_s[0].powi(2) + x.ang_vel_base_rad_s[1].powi(2);
+    raw[4] = sq(x.torque_nm);
+    raw[5] = sq(x.qddot_rad_s2);
+    raw[6] = x.action.iter().zip(x.prev_action).map(|(a, b)| (a - b).powi(2)).sum();
+    raw[7] = x.collisions as f32;
+    raw[8] = (0..NUM_JOINTS)
+        .map(|j| (x.torque_nm[j].abs() - scales.soft_torque_limit * x.torque_limit_nm[j]).max(0.0))
+        .sum();
+    raw[9] = (0..NUM_JOINTS)
+        .map(|j| {
+            (x.qdot_rad_s[j].abs() - scales.soft_velocity_limit * x.velocity_limit_rad_s[j]).clamp(0.0, 1.0)
+        })
+        .sum();
+    raw[10] = x
+        .foot_force_n
+        .iter()
+        .map(|f| (sq(f).sqrt() - scales.max_contact_force_n).max(0.0))
+        .sum();
+    let s = [
+        scales.tracking_lin_vel,
+        scales.tracking_ang_vel,
+        scales.lin_vel_z,
+        scales.ang_vel_xy,
+        scales.torques,
+        scales.joint_acc,
+        scales.action_rate,
+        scales.collision,
+        scales.torque_limits,
+        scales.joint_vel_limits,
+        scales.contact_forces,
+    ];
+    let mut terms = RewardTerms::default();
+    for k in 0..11 {
+        let on = if k < 2 { scales.task } else { scales.regularization };
+        terms.values[k] = if on { s[k] * raw[k] * dt_s } else { 0.0 };
+    }
+    terms
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn inputs<'a>(zeros: &'a [f32; NUM_JOINTS], feet: &'a [[f32; 3]; NUM_LEGS]) -> RewardInputs<'a> {
+        RewardInputs {
+            command: [0.3, 0.0, 0.0],
+            lin_vel_base_m_s: [0.3, 0.0, 0.0],
+            ang_vel_base_rad_s: [0.0; 3],
+            torque_nm: zeros,
+            torque_limit_nm: &hexapod_core::robot::TORQUE_LIMIT_NM,
+            qdot_rad_s: zeros,
+            velocity_limit_rad_s: &hexapod_core::robot::VELOCITY_LIMIT_RAD_S,
+            qddot_rad_s2: zeros,
+            action: zeros,
+            prev_action: zeros,
+            collisions: 2,
+            foot_force_n: feet,
+        }
+    }
+
+    #[test]
+    fn perfect_tracking_earns_full_task_reward() {
+        let z = [0.0; NUM_JOINTS];
+        let feet = [[0.0; 3]; NUM_LEGS];
+        let t = compute(&RewardScales::default(), &inputs(&z, &feet), 0.02);
+        assert!((t.values[0] - 0.02).abs() < 1e-7);
+        assert!((t.values[1] - 0.01).abs() < 1e-7);
+        assert!((t.values[7] + 0.05 * 2.0 * 0.02).abs() < 1e-7);
+    }
+
+    #[test]
+    fn groups_switch_off() {
+        let z = [0.0; NUM_JOINTS];
+        let feet = [[0.0; 3]; NUM_LEGS];
+        let scales = RewardScales { regularization: false, ..Default::default() };
+        let t = compute(&scales, &inputs(&z, &feet), 0.02);
+        assert_eq!(t.values[7], 0.0);
+        let scales = RewardScales { task: false, ..Default::default() };
+        let t = compute(&scales, &inputs(&z, &feet), 0.02);
+        assert_eq!(t.values[0], 0.0);
+    }
+
+    #[test]
+    fn contact_force_penalty_starts_at_the_limit() {
+        let z = [0.0; NUM_JOINTS];
+        let mut feet = [[0.0; 3]; NUM_LEGS];
+        feet[0] = [0.0, 0.0, 200.0];
+        let t = compute(&RewardScales::default(), &inputs(&z, &feet), 1.0);
+        assert!((t.values[10] + 0.1 * 50.0).abs() < 1e-4);
+    }
+}

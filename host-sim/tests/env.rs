@@ -1,0 +1,107 @@
+//! Environment-level checks: observation layout, determinism, randomization ranges, bad actions.
+
+use hexapod_core::obs::*;
+use hexapod_core::robot::NUM_JOINTS;
+use host_sim::config::EnvConfig;
+use host_sim::env::HexapodEnv;
+use host_sim::vec_env::VecEnv;
+
+fn quiet_config(num_envs: usize) -> EnvConfig {
+    let mut c = EnvConfig { num_envs, observation_noise: false, ..Default::default() };
+    c.randomization.enabled = false;
+    c.push.enabled = false;
+    c
+}
+
+#[test]
+fn standing_observations_match_core_layout_and_scales() {
+    let mut env = HexapodEnv::new(quiet_config(2)).unwrap();
+    env.reset();
+    env.set_command(0, [0.25, -0.1, 0.4]);
+    let mut r = env.step(&vec![0.0; 2 * NUM_JOINTS]);
+    for _ in 0..100 {
+        r = env.step(&vec![0.0; 2 * NUM_JOINTS]);
+    }
+    assert!(!r.dones[0], "standing robot must not terminate");
+    let a = &r.obs.actor[..ACTOR_OBS_DIM];
+    let cmd = env.command(0);
+    for k in 0..3 {
+        assert!((a[ACTOR_COMMAND.start + k] - cmd[k] * COMMAND_SCALE[k]).abs() < 1e-6);
+    }
+    let p = &a[ACTOR_PROPRIO];
+    // Upright: gravity along -z of the base.
+    assert!((p[PROPRIO_GRAVITY.start + 2] + 1.0).abs() < 0.01, "{:?}", &p[PROPRIO_GRAVITY]);
+    // Standing at the nominal pose: q - q0 near zero, small velocities.
+    assert!(p[PROPRIO_JOINT_POS].iter().all(|x| x.abs() < 0.05), "{:?}", &p[PROPRIO_JOINT_POS]);
+    let priv_ = &r.obs.privileged[..PRIVILEGED_DIM];
+    assert!((priv_[PRIV_BASE_HEIGHT] - 0.30).abs() < 0.02, "height {}", priv_[PRIV_BASE_HEIGHT]);
+    let fz: f32 = (0..6).map(|l| priv_[PRIV_CONTACT_FORCES.start + 3 * l + 2]).sum();
+    assert!((fz / CONTACT_FORCE_SCALE - 25.5 * 9.81).abs() < 25.0, "fz {fz}");
+    // Height scan on flat ground: (0.30 - 0.3 - 0) * 5 ~ 0.
+    assert!(r.obs.heights[..HEIGHT_SCAN_DIM].iter().all(|h| h.abs() < 0.15));
+    // History: newest entry is the actor's o^p.
+    let hist = &r.obs.history[..HISTORY_DIM];
+    assert_eq!(&hist[HISTORY_DIM - PROPRIO_DIM..], p);
+    // AMP state: joint positions absolute.
+    let amp = &r.obs.amp[..61];
+    let q0 = hexapod_core::robot::Q0_RAD;
+    assert!((amp[1] - q0[1]).abs() < 0.05);
+}
+
+#[test]
+fn same_seed_same_trajectory() {
+    let run = || {
+        let mut env = HexapodEnv::new(EnvConfig { num_envs: 3, ..Default::default() }).unwrap();
+        let mut obs = env.reset();
+        let mut t = 0.0f32;
+        for k in 0..60 {
+            let actions: Vec<f32> = (0..3 * NUM_JOINTS).map(|j| ((k * 7 + j) as f32 * 0.37).sin() * 0.5).collect();
+            let r = env.step(&actions);
+            t += r.rewards.iter().sum::<f32>();
+            obs = r.obs;
+        }
+        (obs.actor, obs.privileged, t)
+    };
+    let (a1, p1, t1) = run();
+    let (a2, p2, t2) = run();
+    assert_eq!(a1, a2);
+    assert_eq!(p1, p2);
+    assert_eq!(t1, t2);
+}
+
+#[test]
+fn randomized_friction_stays_in_range() {
+    let mut env = HexapodEnv::new(EnvConfig { num_envs: 32, ..Default::default() }).unwrap();
+    let obs = env.reset();
+    let frictions: Vec<f32> = (0..32).map(|i| obs.privileged[i * PRIVILEGED_DIM + PRIV_FRICTION]).collect();
+    assert!(frictions.iter().all(|f| (0.1..=2.5).contains(f)), "{frictions:?}");
+    let spread = frictions.iter().cloned().fold(f32::MIN, f32::max) - frictions.iter().cloned().fold(f32::MAX, f32::min);
+    assert!(spread > 1.0, "friction is not randomized: {frictions:?}");
+}
+
+#[test]
+fn nan_action_resets_only_that_robot() {
+    let mut env = HexapodEnv::new(quiet_config(2)).unwrap();
+    env.reset();
+    let mut actions = vec![0.0; 2 * NUM_JOINTS];
+    actions[NUM_JOINTS + 3] = f32::NAN;
+    let r = env.step(&actions);
+    assert_eq!(r.invalid_actions, vec![false, true]);
+    assert_eq!(r.dones, vec![false, true]);
+    assert!(r.obs.actor.iter().all(|x| x.is_finite()));
+}
+
+#[test]
+fn time_out_is_flagged_for_bootstrapping() {
+    let mut c = quiet_config(1);
+    c.episode_length_s = 0.2;
+    let mut env = HexapodEnv::new(c).unwrap();
+    env.reset();
+    let mut last = None;
+    for _ in 0..10 {
+        last = Some(env.step(&[0.0; NUM_JOINTS]));
+    }
+    let r = last.unwrap();
+    assert!(r.dones[0] && r.time_outs[0]);
+    assert!(r.episode_log.iter().any(|(k, _)| k == "rew_tracking_lin_vel"));
+}

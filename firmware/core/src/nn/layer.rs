@@ -12,6 +12,8 @@ pub enum Activation {
     Linear,
     /// ELU with alpha 1.
     Elu,
+    /// ReLU (policies imported from elsewhere).
+    Relu,
 }
 
 /// A dense layer in the packed, row-pair-interleaved layout of [`crate::nn`].
@@ -55,7 +57,7 @@ impl QuantizedLayer<'_> {
         }
         let frac_ok = match self.activation {
             Activation::Elu => self.out_frac_bits <= ELU_MAX_FRAC_BITS,
-            Activation::Linear => self.out_frac_bits <= 15,
+            Activation::Linear | Activation::Relu => self.out_frac_bits <= 15,
         };
         if !frac_ok || self.shift.iter().any(|&s| !(1..=62).contains(&s)) {
             return Err(NnError::Requant { layer: index });
@@ -109,6 +111,7 @@ impl QuantizedLayer<'_> {
     fn finish(&self, y: i64) -> i16 {
         match self.activation {
             Activation::Elu if y < 0 => elu_negative(y, self.out_frac_bits),
+            Activation::Relu if y < 0 => 0,
             _ => saturate_i16(y),
         }
     }

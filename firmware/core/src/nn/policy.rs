@@ -112,7 +112,7 @@ pub struct QuantizedPolicy<'a> {
     /// History -> scaled base linear velocity estimate (no layers: the policy has no
     /// estimator, as the paper's "Baseline").
     pub estimator: Mlp<'a>,
-    /// History -> memory latent.
+    /// History -> memory latent (no layers: a plain actor MLP, e.g. imported from ONNX).
     pub memory: Mlp<'a>,
     /// Actor observation, estimate and latent -> action.
     pub actor: Mlp<'a>,
@@ -127,19 +127,22 @@ pub const fn actor_input_words(estimate_dim: usize, latent_dim: usize) -> [usize
 }
 
 impl QuantizedPolicy<'_> {
-    /// Checks shapes: history in, actor input = observation + estimate + latent, 18 out.
+    /// Checks shapes: history in, 18 out, and the actor's first layer reads the packed
+    /// observation, estimate and latent segments (its `in_dim` counts their padding).
     pub fn validate(&self) -> Result<(), NnError> {
         if !self.estimator.layers.is_empty() {
             self.estimator.validate()?;
         }
-        self.memory.validate()?;
+        if !self.memory.layers.is_empty() {
+            self.memory.validate()?;
+        }
         self.actor.validate()?;
         let inputs_ok = self.history_scale.len() == HISTORY_DIM
             && self.actor_obs_scale.len() == ACTOR_OBS_DIM
             && (self.estimator.layers.is_empty() || self.estimator.in_dim() == HISTORY_DIM)
-            && self.memory.in_dim() == HISTORY_DIM
+            && (self.memory.layers.is_empty() || self.memory.in_dim() == HISTORY_DIM)
             && self.actor.in_dim()
-                == ACTOR_OBS_DIM + self.estimator.out_dim() + self.memory.out_dim()
+                == 2 * actor_input_words(self.estimator.out_dim(), self.memory.out_dim())[3]
             && self.actor.out_dim() == NUM_JOINTS;
         if inputs_ok {
             Ok(())
@@ -205,8 +208,10 @@ impl QuantizedPolicy<'_> {
             let estimate = self.estimator.run(hist, a, b, kernel);
             actor_in[est_w..lat_w].copy_from_slice(&estimate[..lat_w - est_w]);
         }
-        let latent = self.memory.run(hist, a, b, kernel);
-        actor_in[lat_w..end_w].copy_from_slice(&latent[..end_w - lat_w]);
+        if !self.memory.layers.is_empty() {
+            let latent = self.memory.run(hist, a, b, kernel);
+            actor_in[lat_w..end_w].copy_from_slice(&latent[..end_w - lat_w]);
+        }
         let out = self.actor.run(actor_in, a, b, kernel);
 
         let lsb = pow2(-(self.actor.out_frac_bits() as i32));

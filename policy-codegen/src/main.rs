@@ -1,0 +1,176 @@
+//! `policy-codegen` CLI: random checkpoint, code generation (and its freshness check),
+//! accuracy report, ELF size budget.
+
+use anyhow::{bail, Context, Result};
+use clap::{Parser, Subcommand};
+use policy_codegen::{accuracy, checkpoint, emit, onnx, quantize_default, random, records, size};
+use std::path::{Path, PathBuf};
+
+#[derive(Parser)]
+#[command(about = "Checkpoint -> fixed-point Rust for the hexapod firmware")]
+struct Cli {
+    #[command(subcommand)]
+    command: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Writes a randomly initialized checkpoint (policy.safetensors + config.toml).
+    RandomCheckpoint {
+        /// Output directory.
+        #[arg(long, default_value = "assets/policies/random-init")]
+        out: PathBuf,
+        /// Seed.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+    },
+    /// Generates the hexapod-policy crate from a checkpoint directory (or an ONNX MLP).
+    Generate {
+        /// Checkpoint directory.
+        #[arg(long, default_value = "assets/policies/random-init")]
+        checkpoint: PathBuf,
+        /// ONNX file of a plain MLP actor (replaces --checkpoint).
+        #[arg(long)]
+        onnx: Option<PathBuf>,
+        /// Crate directory.
+        #[arg(long, default_value = "firmware/policy")]
+        out: PathBuf,
+        /// Only check that the files on disk are up to date (exit 1 when stale).
+        #[arg(long)]
+        check: bool,
+    },
+    /// Max |a_fixed - a_f32| over observations (synthetic, or a recording).
+    Accuracy {
+        /// Checkpoint directory.
+        #[arg(long, default_value = "assets/policies/random-init")]
+        checkpoint: PathBuf,
+        /// Recorded observations (f32 rows of actor obs 63 + history 210).
+        #[arg(long)]
+        observations: Option<PathBuf>,
+        /// Synthetic observations when no recording is given.
+        #[arg(long, default_value_t = 10_000)]
+        count: usize,
+    },
+    /// Checks a firmware ELF's flash and RAM use against memory.x.
+    Size {
+        /// The ELF.
+        elf: PathBuf,
+        /// The linker memory map.
+        #[arg(long, default_value = "memory.x")]
+        memory_x: PathBuf,
+    },
+}
+
+/// A path as written into generated files: relative, with forward slashes.
+fn display_path(path: &Path) -> String {
+    let cwd = std::env::current_dir().unwrap_or_default();
+    let rel = path.strip_prefix(&cwd).unwrap_or(path);
+    rel.to_string_lossy()
+        .replace('\\', "/")
+        .trim_end_matches('/')
+        .to_string()
+}
+
+fn main() -> Result<()> {
+    match Cli::parse().command {
+        Cmd::RandomCheckpoint { out, seed } => {
+            let spec = random::RandomSpec {
+                seed,
+                ..Default::default()
+            };
+            let policy = random::random_policy(&spec);
+            let sha = random::write_checkpoint(&out, &policy, &spec)?;
+            println!(
+                "wrote {} (sha256 {sha}, {} MACs)",
+                out.display(),
+                policy.macs()
+            );
+        }
+        Cmd::Generate {
+            checkpoint: dir,
+            onnx: onnx_path,
+            out,
+            check,
+        } => {
+            let (policy, source, sha256) = match &onnx_path {
+                Some(path) => {
+                    let bytes = std::fs::read(path)
+                        .with_context(|| format!("reading {}", path.display()))?;
+                    (
+                        onnx::import(&bytes)?,
+                        display_path(path),
+                        checkpoint::sha256_hex(&bytes),
+                    )
+                }
+                None => {
+                    let ck = checkpoint::load(&dir)?;
+                    (ck.policy, display_path(&dir), ck.sha256)
+                }
+            };
+            let q = quantize_default(&policy)?;
+            let prov = emit::Provenance {
+                checkpoint: source,
+                sha256,
+                macs: policy.macs(),
+            };
+            let files = emit::generate(&prov, &q)?;
+            if check {
+                let stale = emit::stale(&out, &files);
+                if !stale.is_empty() {
+                    bail!(
+                        "{} is stale ({}): run `cargo run -p policy-codegen -- generate --checkpoint {}`",
+                        out.display(),
+                        stale.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "),
+                        prov.checkpoint
+                    );
+                }
+                println!("{} is up to date with {}", out.display(), prov.checkpoint);
+            } else {
+                emit::write(&out, &files)?;
+                println!(
+                    "wrote {} from {} ({} MACs)",
+                    out.display(),
+                    prov.checkpoint,
+                    prov.macs
+                );
+            }
+        }
+        Cmd::Accuracy {
+            checkpoint: dir,
+            observations,
+            count,
+        } => {
+            let ck = checkpoint::load(&dir)?;
+            let q = quantize_default(&ck.policy)?;
+            let (recs, what) = match &observations {
+                Some(p) => (
+                    records::load(p)?,
+                    format!("recorded observations {}", p.display()),
+                ),
+                None => (
+                    records::synthetic(count, 2),
+                    format!("synthetic observations (seed 2)"),
+                ),
+            };
+            let r =
+                accuracy::compare(&ck.policy, &q, &recs).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            println!(
+                "{}: {} {}: max |a_fixed - a_f32| = {:.3e}, mean {:.3e}, max |a_f32| = {:.3}",
+                display_path(&dir),
+                r.count,
+                what,
+                r.max_abs_diff,
+                r.mean_abs_diff,
+                r.max_abs_action
+            );
+        }
+        Cmd::Size { elf, memory_x } => {
+            let report = size::check(&elf, &memory_x)?;
+            println!("{report}");
+            if !report.fits() {
+                bail!("{} does not fit {}", elf.display(), memory_x.display());
+            }
+        }
+    }
+    Ok(())
+}

@@ -9,14 +9,18 @@
 #![warn(missing_docs)]
 
 pub mod amp;
+pub mod attitude;
 pub mod can_frame;
 pub mod canopen;
+pub mod control;
 pub mod hal;
 pub mod kinematics;
 pub mod nets;
 pub mod nn;
 pub mod obs;
+pub mod rc;
 pub mod robot;
+pub mod supervisor;
 pub mod timing;
 
 pub use robot::{Joint, Leg, NUM_JOINTS, NUM_LEGS};

@@ -183,6 +183,14 @@ pub fn load(dir: &Path, ppo: &mut Ppo, with_optimizer: bool) -> Result<(), Check
     Ok(())
 }
 
+/// Builds the learner a checkpoint's config describes and loads its weights (no optimizer).
+pub fn load_for_inference(dir: &Path) -> Result<(TrainConfig, Ppo), crate::error::TrainError> {
+    let cfg = load_config(dir)?;
+    let mut ppo = Ppo::new(&cfg)?;
+    load(dir, &mut ppo, false)?;
+    Ok((cfg, ppo))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,5 +1,9 @@
 //! `hexapod`: the host-side command line (motion priors, training, evaluation).
 use clap::{Parser, Subcommand};
+use host_train::cli;
+
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 #[derive(Parser)]
 #[command(name = "hexapod", version, about = "Hexapod locomotion: motion priors, training, evaluation")]
@@ -9,9 +13,20 @@ struct Cli {
 }
 
 #[derive(Subcommand)]
-enum Command {}
+enum Command {
+    /// Train a policy (PPO + AMP) from a TOML preset.
+    Train(cli::train::TrainArgs),
+    /// Run a checkpoint and write its trajectory, plots and a 3D replay.
+    Play(cli::play::PlayArgs),
+    /// Evaluate a checkpoint: tracking error, fall rate, tripod score.
+    Eval(cli::eval::EvalArgs),
+}
 
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
-    match cli.command {}
+    match cli.command {
+        Command::Train(args) => cli::train::run(args),
+        Command::Play(args) => cli::play::run(args),
+        Command::Eval(args) => cli::eval::run(args),
+    }
 }

@@ -126,7 +126,6 @@ impl Runner {
         let steps = self.ppo.cfg.ppo.num_steps_per_env;
         for _ in 0..steps {
             let obs = &self.obs;
-            self.ppo.ac.update_normalizers(&obs.actor, &obs.history, &obs.privileged, &obs.heights)?;
             let act = self.ppo.act(obs, false)?;
             let res = self.env.step(&act.actions);
             let (style, d_raw) = self.ppo.style_rewards(&obs.amp, &res.amp_next)?;
@@ -227,6 +226,10 @@ impl Runner {
         let t1 = Instant::now();
         let priors = self.priors.as_mut().map(|p| p.as_mut() as &mut dyn MotionPriorSource);
         let up = self.ppo.update(&self.storage, priors, self.iteration)?;
+        // Normalizers move between iterations, never within one: the rollout's action
+        // log-probabilities and values stay those of the policy being updated.
+        let s = &self.storage;
+        self.ppo.ac.update_normalizers(&s.actor_obs, &s.history, &s.privileged, &s.heights)?;
         let t2 = Instant::now();
         let row = metrics_row(self.iteration, &ro, &up, (t1 - t0).as_secs_f64(), (t2 - t1).as_secs_f64());
         self.metrics.push(row.clone());

@@ -61,3 +61,32 @@ impl MotionPriorSource for SyntheticTripod {
         (s, sn)
     }
 }
+
+/// The prior source a config asks for (`None` when the style reward is off).
+pub fn load_prior_source(
+    cfg: &crate::config::TrainConfig,
+) -> Result<Option<Box<dyn MotionPriorSource>>, crate::error::TrainError> {
+    use crate::config::PriorKind;
+    use crate::error::TrainError;
+    if !cfg.amp_enabled() {
+        return Ok(None);
+    }
+    match cfg.amp.prior_kind {
+        PriorKind::Synthetic => Ok(Some(Box::new(SyntheticTripod::default()))),
+        PriorKind::Dataset => {
+            let dir = std::path::Path::new(&cfg.amp.priors_dir);
+            let clips = std::fs::read_dir(dir)
+                .map_err(|e| TrainError::Priors(format!("cannot read {}: {e} (run `hexapod priors` first)", dir.display())))?
+                .filter_map(|e| e.ok())
+                .filter(|e| e.path().extension().is_some_and(|x| x == "json"))
+                .count();
+            if clips == 0 {
+                return Err(TrainError::Priors(format!("no *.json motion clips in {}", dir.display())));
+            }
+            Err(TrainError::Priors(format!(
+                "{} holds {clips} clips, but this build cannot read the motion-clip format yet",
+                dir.display()
+            )))
+        }
+    }
+}

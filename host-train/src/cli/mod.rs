@@ -1,1 +1,6 @@
 //! Subcommands of the `hexapod` binary, one file each.
+
+pub mod eval;
+pub mod play;
+pub mod replay;
+pub mod train;

@@ -236,3 +236,24 @@ mod tests {
         assert!(r.invalid_actions[1] && r.dones[1]);
     }
 }
+
+#[cfg(test)]
+mod probe {
+    use super::*;
+    use rand_distr::{Distribution, Normal};
+
+    #[test]
+    fn random_actions_survive_long_episodes() {
+        let mut env = PointMassEnv::new(8, 100, true, true, 3);
+        env.reset();
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        let normal = Normal::new(0.0f32, 0.5).unwrap();
+        let mut terminations = 0;
+        for _ in 0..100 {
+            let a: Vec<f32> = (0..8 * ACTOR_OUT).map(|_| normal.sample(&mut rng)).collect();
+            let r = env.step(&a);
+            terminations += r.dones.iter().zip(&r.time_outs).filter(|(d, t)| **d && !**t).count();
+        }
+        assert_eq!(terminations, 0);
+    }
+}

@@ -4,6 +4,18 @@
 use candle_core::{Result, Tensor};
 use candle_nn::{Linear, Module, VarBuilder};
 
+/// A linear layer initialized as PyTorch's `nn.Linear` (what rsl_rl uses): weights and
+/// biases uniform in `+-1/sqrt(fan_in)`. (candle's `linear` draws Kaiming-normal weights for
+/// ReLU, about 2.4x larger per layer, which makes a fresh policy's actions explode through
+/// the previous-action feedback.)
+pub fn torch_linear(input: usize, output: usize, vb: VarBuilder) -> Result<Linear> {
+    let bound = 1.0 / (input as f64).sqrt();
+    let init = candle_nn::Init::Uniform { lo: -bound, up: bound };
+    let w = vb.get_with_hints((output, input), "weight", init)?;
+    let b = vb.get_with_hints(output, "bias", init)?;
+    Ok(Linear::new(w, Some(b)))
+}
+
 /// A multilayer perceptron: `Linear -> ELU -> ... -> Linear`.
 #[derive(Clone, Debug)]
 pub struct Mlp {
@@ -20,7 +32,7 @@ impl Mlp {
         let layers = sizes
             .windows(2)
             .enumerate()
-            .map(|(k, w)| candle_nn::linear(w[0], w[1], vb.pp(format!("layers.{k}"))))
+            .map(|(k, w)| torch_linear(w[0], w[1], vb.pp(format!("layers.{k}"))))
             .collect::<Result<Vec<_>>>()?;
         Ok(Self { layers })
     }

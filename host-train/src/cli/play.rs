@@ -1,0 +1,133 @@
+//! `hexapod play`: runs a checkpoint's policy (deterministic) and writes the trajectory
+//! (CSV), plots, and an animated 3D replay (GIF) of the first robot.
+
+use crate::checkpoint::load_for_inference;
+use crate::cli::replay::{render_replay, ReplayFrame};
+use crate::config::EnvKind;
+use crate::env::make_env;
+use crate::metrics::line_plot;
+use anyhow::Context;
+use clap::Args;
+use hexapod_core::amp::{AMP_BASE_HEIGHT, AMP_JOINT_POS, AMP_STATE_DIM};
+use hexapod_core::obs::{
+    ACTOR_COMMAND, ACTOR_OBS_DIM, ACTOR_PROPRIO, ANG_VEL_SCALE, COMMAND_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM,
+    PRIV_LIN_VEL, PROPRIO_ANG_VEL,
+};
+use hexapod_core::robot::JOINT_NAMES;
+use hexapod_core::timing::POLICY_DT_S;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+/// Arguments of `hexapod play`.
+#[derive(Args, Debug)]
+pub struct PlayArgs {
+    /// Checkpoint directory (policy.safetensors + config.toml).
+    #[arg(long)]
+    pub checkpoint: PathBuf,
+    /// Policy steps to run (50 per second).
+    #[arg(long, default_value_t = 500)]
+    pub steps: usize,
+    /// Fixed command `vx,vy,wz` (m/s, m/s, rad/s) instead of the environment's.
+    #[arg(long, value_delimiter = ',', num_args = 3, allow_hyphen_values = true)]
+    pub command: Option<Vec<f32>>,
+    /// Output directory (default `<checkpoint>/play`).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Environment override (`sim` or `fake`).
+    #[arg(long, value_parser = ["sim", "fake"])]
+    pub env: Option<String>,
+    /// Skip the GIF replay.
+    #[arg(long)]
+    pub no_replay: bool,
+}
+
+/// Overwrites the command slot of actor observations `[N, 63]`.
+pub fn set_command(actor: &mut [f32], command: [f32; 3]) {
+    for row in actor.chunks_exact_mut(ACTOR_OBS_DIM) {
+        for k in 0..3 {
+            row[ACTOR_COMMAND.start + k] = command[k] * COMMAND_SCALE[k];
+        }
+    }
+}
+
+/// Runs `hexapod play`.
+pub fn run(args: PlayArgs) -> anyhow::Result<()> {
+    let (mut cfg, mut ppo) = load_for_inference(&args.checkpoint)?;
+    cfg.env.num_envs = 1;
+    if let Some(kind) = &args.env {
+        cfg.env.kind = if kind == "fake" { EnvKind::Fake } else { EnvKind::Sim };
+    }
+    let out = args.out.clone().unwrap_or_else(|| args.checkpoint.join("play"));
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    let mut env = make_env(&cfg)?;
+    let mut obs = env.reset();
+    let command = args.command.as_ref().map(|c| [c[0], c[1], c[2]]);
+    let mut csv = String::from("t_s,cmd_vx,cmd_vy,cmd_wz,vx_m_s,vy_m_s,wz_rad_s,est_vx_m_s,est_vy_m_s,base_height_m,done");
+    for name in JOINT_NAMES {
+        write!(csv, ",q_{name}").ok();
+    }
+    for name in JOINT_NAMES {
+        write!(csv, ",a_{name}").ok();
+    }
+    csv.push('\n');
+    let mut frames = Vec::with_capacity(args.steps);
+    let (mut vel, mut cmd_series, mut q_series) = (vec![Vec::new(); 3], vec![Vec::new(); 3], vec![Vec::new(); 6]);
+    for step in 0..args.steps {
+        if let Some(c) = command {
+            set_command(&mut obs.actor, c);
+        }
+        let act = ppo.act(&obs, true)?;
+        let t = step as f32 * POLICY_DT_S;
+        let a = &obs.actor[..ACTOR_OBS_DIM];
+        let p = &obs.privileged[..PRIVILEGED_DIM];
+        let amp = &obs.amp[..AMP_STATE_DIM];
+        let cmd: Vec<f32> = (0..3).map(|k| a[ACTOR_COMMAND.start + k] / COMMAND_SCALE[k]).collect();
+        let v = [
+            p[PRIV_LIN_VEL.start] / LIN_VEL_SCALE,
+            p[PRIV_LIN_VEL.start + 1] / LIN_VEL_SCALE,
+            a[ACTOR_PROPRIO.start + PROPRIO_ANG_VEL.start + 2] / ANG_VEL_SCALE,
+        ];
+        let est = if act.estimate.is_empty() { [f32::NAN; 2] } else { [act.estimate[0] / LIN_VEL_SCALE, act.estimate[1] / LIN_VEL_SCALE] };
+        let res = env.step(&act.actions);
+        write!(
+            csv,
+            "{t},{},{},{},{},{},{},{},{},{},{}",
+            cmd[0], cmd[1], cmd[2], v[0], v[1], v[2], est[0], est[1], amp[AMP_BASE_HEIGHT], res.dones[0] as u8
+        )
+        .ok();
+        for q in &amp[AMP_JOINT_POS] {
+            write!(csv, ",{q}").ok();
+        }
+        for x in &act.actions[..18] {
+            write!(csv, ",{x}").ok();
+        }
+        csv.push('\n');
+        for k in 0..3 {
+            vel[k].push((t as f64, v[k] as f64));
+            cmd_series[k].push((t as f64, cmd[k] as f64));
+        }
+        for (j, s) in q_series.iter_mut().enumerate() {
+            s.push((t as f64, amp[AMP_JOINT_POS.start + j] as f64));
+        }
+        let mut q = [0.0f32; 18];
+        q.copy_from_slice(&amp[AMP_JOINT_POS]);
+        frames.push(ReplayFrame { q_rad: q, lin_vel_base_m_s: [v[0], v[1]], yaw_rate_rad_s: v[2], base_height_m: amp[AMP_BASE_HEIGHT] });
+        obs = res.obs;
+    }
+    std::fs::write(out.join("trajectory.csv"), csv)?;
+    let names = ["vx", "vy", "wz"];
+    let mut series = Vec::new();
+    for k in 0..3 {
+        series.push((format!("{} measured", names[k]), vel[k].clone()));
+        series.push((format!("{} command", names[k]), cmd_series[k].clone()));
+    }
+    line_plot(&out.join("velocity_tracking.png"), "velocity tracking", "t (s)", &series).map_err(anyhow::Error::msg)?;
+    let joint_series: Vec<(String, Vec<(f64, f64)>)> =
+        q_series.into_iter().enumerate().map(|(j, s)| (format!("q {}", JOINT_NAMES[j]), s)).collect();
+    line_plot(&out.join("joints_right_front_middle.png"), "joint angles (rad)", "t (s)", &joint_series).map_err(anyhow::Error::msg)?;
+    if !args.no_replay {
+        render_replay(&out.join("replay.gif"), &frames).map_err(anyhow::Error::msg)?;
+    }
+    eprintln!("wrote {} (trajectory.csv, plots{})", out.display(), if args.no_replay { "" } else { ", replay.gif" });
+    Ok(())
+}

@@ -1,0 +1,84 @@
+//! `hexapod train`: trains a policy from a TOML preset, with resume and overrides.
+
+use crate::amp::prior_source::load_prior_source;
+use crate::config::{EnvKind, TrainConfig};
+use crate::env::make_env;
+use crate::runner::Runner;
+use anyhow::Context;
+use clap::Args;
+use std::path::PathBuf;
+
+/// Arguments of `hexapod train`.
+#[derive(Args, Debug)]
+pub struct TrainArgs {
+    /// Preset (TOML), e.g. `configs/default.toml`.
+    #[arg(long, short)]
+    pub config: PathBuf,
+    /// Output directory (default `runs/<experiment_name>`).
+    #[arg(long)]
+    pub run_dir: Option<PathBuf>,
+    /// Continue from this checkpoint directory (its weights, optimizer and iteration).
+    #[arg(long)]
+    pub resume: Option<PathBuf>,
+    /// Override `runner.max_iterations`.
+    #[arg(long)]
+    pub max_iterations: Option<usize>,
+    /// Override `env.num_envs`.
+    #[arg(long)]
+    pub num_envs: Option<usize>,
+    /// Override `env.kind`.
+    #[arg(long, value_parser = ["sim", "fake"])]
+    pub env: Option<String>,
+    /// No progress bar (for logs).
+    #[arg(long)]
+    pub no_progress: bool,
+}
+
+/// Applies command-line overrides and validates.
+pub fn resolve_config(args: &TrainArgs) -> anyhow::Result<TrainConfig> {
+    let mut cfg = TrainConfig::load(&args.config)?;
+    if let Some(n) = args.max_iterations {
+        cfg.runner.max_iterations = n;
+    }
+    if let Some(n) = args.num_envs {
+        cfg.env.num_envs = n;
+    }
+    if let Some(kind) = &args.env {
+        cfg.env.kind = if kind == "fake" { EnvKind::Fake } else { EnvKind::Sim };
+    }
+    cfg.validate()?;
+    Ok(cfg)
+}
+
+/// Runs `hexapod train`.
+pub fn run(args: TrainArgs) -> anyhow::Result<()> {
+    let cfg = resolve_config(&args)?;
+    if cfg.runner.num_threads > 0 {
+        std::env::set_var("RAYON_NUM_THREADS", cfg.runner.num_threads.to_string());
+    }
+    let run_dir = args.run_dir.clone().unwrap_or_else(|| PathBuf::from("runs").join(&cfg.runner.experiment_name));
+    let env = make_env(&cfg)?;
+    let priors = load_prior_source(&cfg)?;
+    let mut runner = Runner::new(&cfg, env, priors, &run_dir)?;
+    if let Some(ckpt) = &args.resume {
+        let saved = crate::checkpoint::load_config(ckpt)?;
+        if saved.policy != cfg.policy || saved.amp.discriminator_hidden != cfg.amp.discriminator_hidden {
+            anyhow::bail!("{}: the checkpoint's network shapes differ from {}", ckpt.display(), args.config.display());
+        }
+        runner.resume(ckpt).with_context(|| format!("resuming from {}", ckpt.display()))?;
+        eprintln!("resumed from {} at iteration {}", ckpt.display(), runner.iteration);
+    }
+    std::fs::write(run_dir.join("config.toml"), cfg.to_toml_string())
+        .with_context(|| format!("writing {}", run_dir.display()))?;
+    eprintln!(
+        "training `{}`: {} envs x {} steps per iteration, {} iterations -> {}",
+        cfg.runner.experiment_name,
+        cfg.env.num_envs,
+        cfg.ppo.num_steps_per_env,
+        cfg.runner.max_iterations,
+        run_dir.display()
+    );
+    let last = runner.learn(!args.no_progress)?;
+    eprintln!("done: checkpoint {}, metrics {}", last.display(), run_dir.join("metrics.csv").display());
+    Ok(())
+}

@@ -77,7 +77,11 @@ impl VirtualBus {
     fn transmit(&mut self, frame: &CanFrame) -> Option<u64> {
         self.stats.frames += 1;
         if let Some(log) = &mut self.log {
-            log.push(LogEntry { time_us: self.now_us, bus: self.index, frame: *frame });
+            log.push(LogEntry {
+                time_us: self.now_us,
+                bus: self.index,
+                frame: *frame,
+            });
         }
         if self.faults.loss_probability > 0.0 && self.rng.uniform() < self.faults.loss_probability {
             self.stats.lost += 1;

@@ -22,7 +22,13 @@ pub struct LogEntry {
 /// Formats one entry as a candump log line (no newline).
 pub fn format_line(e: &LogEntry) -> String {
     let t = EPOCH_S * 1_000_000 + e.time_us;
-    let mut s = format!("({}.{:06}) can{} {:03X}#", t / 1_000_000, t % 1_000_000, e.bus, e.frame.cob_id());
+    let mut s = format!(
+        "({}.{:06}) can{} {:03X}#",
+        t / 1_000_000,
+        t % 1_000_000,
+        e.bus,
+        e.frame.cob_id()
+    );
     if e.frame.is_rtr() {
         s.push('R');
     } else {
@@ -48,11 +54,17 @@ pub fn parse_line(line: &str) -> Result<LogEntry, CandumpError> {
     let time = parts.next().ok_or_else(bad)?;
     let iface = parts.next().ok_or_else(bad)?;
     let frame = parts.next().ok_or_else(bad)?;
-    let time = time.strip_prefix('(').and_then(|t| t.strip_suffix(')')).ok_or_else(bad)?;
+    let time = time
+        .strip_prefix('(')
+        .and_then(|t| t.strip_suffix(')'))
+        .ok_or_else(bad)?;
     let (sec, usec) = time.split_once('.').ok_or_else(bad)?;
     let sec: u64 = sec.parse().map_err(|_| bad())?;
     let usec: u64 = usec.parse().map_err(|_| bad())?;
-    let bus: usize = iface.strip_prefix("can").and_then(|b| b.parse().ok()).ok_or_else(bad)?;
+    let bus: usize = iface
+        .strip_prefix("can")
+        .and_then(|b| b.parse().ok())
+        .ok_or_else(bad)?;
     let (id, data) = frame.split_once('#').ok_or_else(bad)?;
     let id = u16::from_str_radix(id, 16).map_err(|_| bad())?;
     let frame = if data == "R" {
@@ -68,8 +80,14 @@ pub fn parse_line(line: &str) -> Result<LogEntry, CandumpError> {
         }
         CanFrame::data_frame(id, &bytes).ok_or_else(bad)?
     };
-    let time_us = (sec * 1_000_000 + usec).checked_sub(EPOCH_S * 1_000_000).ok_or_else(bad)?;
-    Ok(LogEntry { time_us, bus, frame })
+    let time_us = (sec * 1_000_000 + usec)
+        .checked_sub(EPOCH_S * 1_000_000)
+        .ok_or_else(bad)?;
+    Ok(LogEntry {
+        time_us,
+        bus,
+        frame,
+    })
 }
 
 /// The whole log, one line per frame, ordered by time (stable across buses).
@@ -91,10 +109,18 @@ mod tests {
     #[test]
     fn formats_like_candump() {
         let f = CanFrame::data_frame(0x181, &[0x37, 0x06, 0xA0, 0x86, 0x01, 0x00]).unwrap();
-        let e = LogEntry { time_us: 20_000, bus: 0, frame: f };
+        let e = LogEntry {
+            time_us: 20_000,
+            bus: 0,
+            frame: f,
+        };
         assert_eq!(format_line(&e), "(1700000000.020000) can0 181#3706A0860100");
         assert_eq!(parse_line(&format_line(&e)), Ok(e));
-        let sync = LogEntry { time_us: 1, bus: 1, frame: CanFrame::data_frame(0x80, &[]).unwrap() };
+        let sync = LogEntry {
+            time_us: 1,
+            bus: 1,
+            frame: CanFrame::data_frame(0x80, &[]).unwrap(),
+        };
         assert_eq!(format_line(&sync), "(1700000000.000001) can1 080#");
         assert_eq!(parse_line(&format_line(&sync)), Ok(sync));
         assert!(parse_line("(1.0) can0 181#ABC").is_err());

@@ -7,11 +7,15 @@
 //! - [`rig::DriveRig`]: two buses with the robot's 18 drives;
 //! - [`imu::ImuModel`]: IMU readings from a simulated state, with noise, bias, staleness;
 //! - [`rc::RcSource`]: a CRSF receiver stream, with link loss;
-//! - [`candump`]: traffic logs in the candump format.
+//! - [`candump`]: traffic logs in the candump format;
+//! - [`harness::Harness`]: controller core + rig + sensors + plant in 1 ms steps.
 
 pub mod bus;
 pub mod candump;
 pub mod drive;
+pub mod harness;
+pub mod imu;
 pub mod plant;
+pub mod rc;
 pub mod rig;
 pub mod rng;

@@ -87,7 +87,8 @@ impl JointModel {
                 ),
                 None => 0.0,
             };
-            let qddot = (s.torque_nm - self.friction_nms_per_rad * s.qdot_rad_s) / self.inertia_kg_m2;
+            let qddot =
+                (s.torque_nm - self.friction_nms_per_rad * s.qdot_rad_s) / self.inertia_kg_m2;
             s.qdot_rad_s += qddot * dt_s;
             s.q_rad += s.qdot_rad_s * dt_s;
         }
@@ -112,7 +113,11 @@ mod tests {
     #[test]
     fn tracks_a_step_within_the_velocity_limit() {
         let mut m = JointModel::at(&[0.0; NUM_JOINTS]);
-        let sp = CspSetpoint { q_target_rad: 0.5, vel_limit_rad_s: 2.0, torque_limit_nm: 45.0 };
+        let sp = CspSetpoint {
+            q_target_rad: 0.5,
+            vel_limit_rad_s: 2.0,
+            torque_limit_nm: 45.0,
+        };
         m.set_setpoint(1, Some(sp));
         let mut peak = 0.0f32;
         for _ in 0..400 {
@@ -121,6 +126,9 @@ mod tests {
         }
         assert!((m.states[1].q_rad - 0.5).abs() < 0.01, "{:?}", m.states[1]);
         assert!(peak < 2.2, "velocity limit exceeded: {peak}");
-        assert_eq!(m.states[0].q_rad, 0.0, "a joint without setpoint must not move");
+        assert_eq!(
+            m.states[0].q_rad, 0.0,
+            "a joint without setpoint must not move"
+        );
     }
 }

@@ -40,8 +40,13 @@ impl DriveRig {
 
     /// The recorded traffic of both buses in candump log format.
     pub fn candump(&self) -> String {
-        let entries: Vec<LogEntry> =
-            self.buses.iter().filter_map(|b| b.log.as_ref()).flatten().copied().collect();
+        let entries: Vec<LogEntry> = self
+            .buses
+            .iter()
+            .filter_map(|b| b.log.as_ref())
+            .flatten()
+            .copied()
+            .collect();
         format_log(&entries)
     }
 

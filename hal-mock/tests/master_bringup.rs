@@ -24,7 +24,12 @@ impl Bench {
         let mut rig = DriveRig::new(1);
         rig.record();
         rig.power_on(0);
-        Self { master: Master::new(), rig, plant: JointModel::at(&Q_SIT_RAD), now_us: 0 }
+        Self {
+            master: Master::new(),
+            rig,
+            plant: JointModel::at(&Q_SIT_RAD),
+            now_us: 0,
+        }
     }
 
     /// Moves frames both ways and advances time by 1 ms.
@@ -129,7 +134,11 @@ fn cyclic_exchange_tracks_targets_and_reports_feedback() {
     }
     let fb = b.master.feedback();
     for j in 0..NUM_JOINTS {
-        assert!((fb.q_rad[j] - Q0_RAD[j]).abs() < 0.01, "joint {j}: {}", fb.q_rad[j]);
+        assert!(
+            (fb.q_rad[j] - Q0_RAD[j]).abs() < 0.01,
+            "joint {j}: {}",
+            fb.q_rad[j]
+        );
         assert!((fb.q_rad[j] - b.plant.states[j].q_rad).abs() < 1e-4);
     }
     assert_eq!(b.master.first_fault(), None);
@@ -152,7 +161,10 @@ fn lost_heartbeat_is_detected() {
     }
     let fault = b.master.node(7).fault;
     assert!(
-        matches!(fault, Some(NodeFault::LostHeartbeat | NodeFault::FeedbackLost)),
+        matches!(
+            fault,
+            Some(NodeFault::LostHeartbeat | NodeFault::FeedbackLost)
+        ),
         "{fault:?}"
     );
     assert_eq!(b.master.node(6).fault, None);
@@ -171,7 +183,10 @@ fn emcy_faults_the_node_and_fault_reset_recovers() {
         b.rig.buses[1].send_from_drive(f);
     }
     b.cycle(DriveRequest::Enable, &Q_SIT_RAD);
-    assert_eq!(b.master.node(12).fault, Some(NodeFault::Emergency { error_code: 0x2310 }));
+    assert_eq!(
+        b.master.node(12).fault,
+        Some(NodeFault::Emergency { error_code: 0x2310 })
+    );
     assert_eq!(b.master.node(12).power, PowerState::Fault);
     assert_eq!(b.master.counters.emergencies, 1);
     for _ in 0..3 {
@@ -204,7 +219,10 @@ fn bus_off_loses_that_bus_only() {
         b.cycle(DriveRequest::Enable, &Q_SIT_RAD);
     }
     assert_eq!(b.rig.drives[0].power_state(), PowerState::QuickStopActive);
-    assert!(b.rig.drives[0].setpoint().is_some(), "a held joint keeps torque");
+    assert!(
+        b.rig.drives[0].setpoint().is_some(),
+        "a held joint keeps torque"
+    );
     assert_eq!(b.rig.drives[10].power_state(), PowerState::OperationEnabled);
 }
 

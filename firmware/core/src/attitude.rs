@@ -19,7 +19,11 @@ pub struct AttitudeConfig {
 
 impl Default for AttitudeConfig {
     fn default() -> Self {
-        Self { kp: 2.0, ki: 0.05, accel_tolerance: 0.3 }
+        Self {
+            kp: 2.0,
+            ki: 0.05,
+            accel_tolerance: 0.3,
+        }
     }
 }
 
@@ -33,7 +37,11 @@ pub struct AttitudeFilter {
 }
 
 fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 
 fn norm(v: [f32; 3]) -> f32 {
@@ -43,7 +51,12 @@ fn norm(v: [f32; 3]) -> f32 {
 impl AttitudeFilter {
     /// A filter that initialises from its first accelerometer sample.
     pub const fn new(config: AttitudeConfig) -> Self {
-        Self { config, q: [1.0, 0.0, 0.0, 0.0], bias_integral: [0.0; 3], initialized: false }
+        Self {
+            config,
+            q: [1.0, 0.0, 0.0, 0.0],
+            bias_integral: [0.0; 3],
+            initialized: false,
+        }
     }
 
     /// Forgets the state.
@@ -59,7 +72,11 @@ impl AttitudeFilter {
     /// The world's up axis expressed in the base frame.
     pub fn up_base(&self) -> [f32; 3] {
         let [w, x, y, z] = self.q;
-        [2.0 * (x * z - w * y), 2.0 * (w * x + y * z), w * w - x * x - y * y + z * z]
+        [
+            2.0 * (x * z - w * y),
+            2.0 * (w * x + y * z),
+            w * w - x * x - y * y + z * z,
+        ]
     }
 
     /// Unit gravity direction in the base frame ([0, 0, -1] when level): the observation's
@@ -89,7 +106,11 @@ impl AttitudeFilter {
         }
         let mut omega = gyro_rad_s;
         if accel_ok {
-            let a = [accel_m_s2[0] / a_norm, accel_m_s2[1] / a_norm, accel_m_s2[2] / a_norm];
+            let a = [
+                accel_m_s2[0] / a_norm,
+                accel_m_s2[1] / a_norm,
+                accel_m_s2[2] / a_norm,
+            ];
             let e = cross(a, self.up_base());
             for k in 0..3 {
                 self.bias_integral[k] += self.config.ki * e[k] * dt_s;
@@ -140,7 +161,11 @@ mod tests {
         let mut f = AttitudeFilter::new(AttitudeConfig::default());
         f.update([0.0; 3], accel_rolled(0.3), 0.005);
         assert!((f.tilt_rad() - 0.3).abs() < 1e-4);
-        assert!((f.up_base()[1] - 0.3f32.sin()).abs() < 1e-4, "{:?}", f.up_base());
+        assert!(
+            (f.up_base()[1] - 0.3f32.sin()).abs() < 1e-4,
+            "{:?}",
+            f.up_base()
+        );
     }
 
     #[test]

@@ -26,7 +26,12 @@ impl CanFrame {
         }
         let mut data = [0; 8];
         data[..payload.len()].copy_from_slice(payload);
-        Some(Self { id: cob_id, len: payload.len() as u8, remote: false, data })
+        Some(Self {
+            id: cob_id,
+            len: payload.len() as u8,
+            remote: false,
+            data,
+        })
     }
 
     /// An infallible constructor for frames built from protocol constants: keeps the low
@@ -35,7 +40,12 @@ impl CanFrame {
         let len = payload.len().min(8);
         let mut data = [0; 8];
         data[..len].copy_from_slice(&payload[..len]);
-        Self { id: cob_id & MAX_STANDARD_ID, len: len as u8, remote: false, data }
+        Self {
+            id: cob_id & MAX_STANDARD_ID,
+            len: len as u8,
+            remote: false,
+            data,
+        }
     }
 
     /// The 11-bit identifier (the CANopen COB-ID).
@@ -80,9 +90,12 @@ impl Frame for CanFrame {
 
     fn new_remote(id: impl Into<Id>, dlc: usize) -> Option<Self> {
         match id.into() {
-            Id::Standard(id) if dlc <= 8 => {
-                Some(Self { id: id.as_raw(), len: dlc as u8, remote: true, data: [0; 8] })
-            }
+            Id::Standard(id) if dlc <= 8 => Some(Self {
+                id: id.as_raw(),
+                len: dlc as u8,
+                remote: true,
+                data: [0; 8],
+            }),
             _ => None,
         }
     }

@@ -35,7 +35,11 @@ impl<'p, const W: usize> NnPolicy<'p, W> {
     /// Wraps a validated policy; `None` if it is invalid or `W` is too small.
     pub fn new(policy: &'p QuantizedPolicy<'p>, kernel: Kernel) -> Option<Self> {
         policy.validate().ok()?;
-        (policy.scratch_words() <= W).then(|| Self { policy, scratch: Scratch::default(), kernel })
+        (policy.scratch_words() <= W).then(|| Self {
+            policy,
+            scratch: Scratch::default(),
+            kernel,
+        })
     }
 }
 
@@ -47,7 +51,13 @@ impl<const W: usize> Policy for NnPolicy<'_, W> {
         history: &ProprioHistory,
     ) -> Option<[f32; NUM_JOINTS]> {
         self.policy
-            .step(&mut self.scratch, command, prev_action, history, self.kernel)
+            .step(
+                &mut self.scratch,
+                command,
+                prev_action,
+                history,
+                self.kernel,
+            )
             .ok()
             .map(|out| out.action)
     }
@@ -111,7 +121,11 @@ impl Default for ControlStep {
 impl ControlStep {
     /// A step that starts like a simulator reset at the nominal pose.
     pub const fn new() -> Self {
-        Self { history: None, prev_action: [0.0; NUM_JOINTS], prev_targets: Q0_RAD }
+        Self {
+            history: None,
+            prev_action: [0.0; NUM_JOINTS],
+            prev_targets: Q0_RAD,
+        }
     }
 
     /// Starts a new episode from the current targets (the end of the stand-up).
@@ -210,11 +224,18 @@ mod tests {
 
     #[test]
     fn targets_follow_the_action_and_feed_it_back() {
-        let mut p = Scripted { action: [0.4; NUM_JOINTS], seen_prev: [9.0; 18], seen_joint_pos0: 9.0 };
+        let mut p = Scripted {
+            action: [0.4; NUM_JOINTS],
+            seen_prev: [9.0; 18],
+            seen_joint_pos0: 9.0,
+        };
         let mut c = ControlStep::new();
         let t = c.step(&mut p, &sensors(), [0.0; 3]).unwrap();
         assert_eq!(p.seen_prev, [0.0; NUM_JOINTS]);
-        assert_eq!(p.seen_joint_pos0, 0.0, "history filled with the first observation");
+        assert_eq!(
+            p.seen_joint_pos0, 0.0,
+            "history filled with the first observation"
+        );
         assert!((t[0] - (Q0_RAD[0] + 0.1)).abs() < 1e-6);
         c.step(&mut p, &sensors(), [0.0; 3]).unwrap();
         assert_eq!(p.seen_prev, [0.4; NUM_JOINTS]);
@@ -222,7 +243,11 @@ mod tests {
 
     #[test]
     fn clamps_rate_and_limits() {
-        let mut p = Scripted { action: [100.0; NUM_JOINTS], seen_prev: [0.0; 18], seen_joint_pos0: 0.0 };
+        let mut p = Scripted {
+            action: [100.0; NUM_JOINTS],
+            seen_prev: [0.0; 18],
+            seen_joint_pos0: 0.0,
+        };
         let mut c = ControlStep::new();
         let t = c.step(&mut p, &sensors(), [0.0; 3]).unwrap();
         for j in 0..NUM_JOINTS {
@@ -237,12 +262,22 @@ mod tests {
 
     #[test]
     fn non_finite_inputs_and_actions_are_errors() {
-        let mut p = Scripted { action: [0.0; NUM_JOINTS], seen_prev: [0.0; 18], seen_joint_pos0: 0.0 };
+        let mut p = Scripted {
+            action: [0.0; NUM_JOINTS],
+            seen_prev: [0.0; 18],
+            seen_joint_pos0: 0.0,
+        };
         let mut c = ControlStep::new();
         let mut s = sensors();
         s.qdot_rad_s[3] = f32::NAN;
-        assert_eq!(c.step(&mut p, &s, [0.0; 3]), Err(ControlError::NonFiniteObservation));
+        assert_eq!(
+            c.step(&mut p, &s, [0.0; 3]),
+            Err(ControlError::NonFiniteObservation)
+        );
         p.action[5] = f32::INFINITY;
-        assert_eq!(c.step(&mut p, &sensors(), [0.0; 3]), Err(ControlError::NonFiniteAction));
+        assert_eq!(
+            c.step(&mut p, &sensors(), [0.0; 3]),
+            Err(ControlError::NonFiniteAction)
+        );
     }
 }

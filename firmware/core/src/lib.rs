@@ -13,6 +13,7 @@ pub mod attitude;
 pub mod can_frame;
 pub mod canopen;
 pub mod control;
+pub mod controller;
 pub mod hal;
 pub mod kinematics;
 pub mod nets;

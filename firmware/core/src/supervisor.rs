@@ -108,7 +108,10 @@ impl Fault {
         match self {
             Fault::Tilt | Fault::EnableTimeout => Reaction::TorqueOff,
             Fault::BusOff { .. } => Reaction::Hold,
-            Fault::Drive { fault: NodeFault::BusOff, .. } => Reaction::Hold,
+            Fault::Drive {
+                fault: NodeFault::BusOff,
+                ..
+            } => Reaction::Hold,
             _ => Reaction::SitDown,
         }
     }
@@ -264,8 +267,13 @@ impl Supervisor {
         }
         if let Some((joint, fault)) = i.drive_fault {
             return Some(match fault {
-                NodeFault::BusOff => Fault::BusOff { bus: can_bus(joint) as u8 },
-                fault => Fault::Drive { joint: joint as u8, fault },
+                NodeFault::BusOff => Fault::BusOff {
+                    bus: can_bus(joint) as u8,
+                },
+                fault => Fault::Drive {
+                    joint: joint as u8,
+                    fault,
+                },
             });
         }
         if !i.imu_fresh {
@@ -286,7 +294,10 @@ impl Supervisor {
             Reaction::Hold => Mode::SafeHold { fault },
             Reaction::SitDown => {
                 self.from_rad = self.targets_rad;
-                Mode::SafeSitDown { since_us: now_us, fault }
+                Mode::SafeSitDown {
+                    since_us: now_us,
+                    fault,
+                }
             }
         };
     }
@@ -322,14 +333,24 @@ impl Supervisor {
             Mode::Boot => {}
             Mode::Configuring => {
                 if let Some((joint, fault)) = i.drive_fault {
-                    self.mode = Mode::Faulted { fault: Fault::Drive { joint: joint as u8, fault } };
+                    self.mode = Mode::Faulted {
+                        fault: Fault::Drive {
+                            joint: joint as u8,
+                            fault,
+                        },
+                    };
                 } else if !i.configuring {
                     self.mode = Mode::Disabled;
                 }
             }
             Mode::Disabled => {
                 if let Some((joint, fault)) = i.drive_fault {
-                    self.mode = Mode::Faulted { fault: Fault::Drive { joint: joint as u8, fault } };
+                    self.mode = Mode::Faulted {
+                        fault: Fault::Drive {
+                            joint: joint as u8,
+                            fault,
+                        },
+                    };
                 } else if arm_edge && fault.is_none() {
                     self.mode = Mode::Enabling { since_us: now };
                 }
@@ -343,7 +364,9 @@ impl Supervisor {
                     self.from_rad = *i.q_rad;
                     self.mode = Mode::StandingUp { since_us: now };
                 } else if now.saturating_sub(since_us) > self.config.enable_timeout_us {
-                    self.mode = Mode::Faulted { fault: Fault::EnableTimeout };
+                    self.mode = Mode::Faulted {
+                        fault: Fault::EnableTimeout,
+                    };
                 }
             }
             Mode::StandingUp { since_us } => {
@@ -375,7 +398,10 @@ impl Supervisor {
                     self.mode = Mode::Disabled;
                 }
             }
-            Mode::SafeSitDown { since_us, fault: cause } => {
+            Mode::SafeSitDown {
+                since_us,
+                fault: cause,
+            } => {
                 if fault == Some(Fault::Tilt) {
                     self.mode = Mode::Faulted { fault: Fault::Tilt };
                 } else {
@@ -391,7 +417,10 @@ impl Supervisor {
                     self.mode = Mode::Faulted { fault: Fault::Tilt };
                 } else if i.rc.link_ok && !i.rc.arm {
                     self.from_rad = self.targets_rad;
-                    self.mode = Mode::SafeSitDown { since_us: now, fault: cause };
+                    self.mode = Mode::SafeSitDown {
+                        since_us: now,
+                        fault: cause,
+                    };
                 }
             }
             Mode::Faulted { fault: cause } => {
@@ -436,7 +465,11 @@ impl Supervisor {
         ) {
             self.targets_rad = *i.q_rad;
         }
-        Command { requests: [request; NUM_JOINTS], targets_rad: targets, clear_faults }
+        Command {
+            requests: [request; NUM_JOINTS],
+            targets_rad: targets,
+            clear_faults,
+        }
     }
 }
 

@@ -14,8 +14,16 @@ struct World {
     overrun: bool,
 }
 
-const ARMED: RcState = RcState { command: [0.3, 0.0, 0.0], arm: true, link_ok: true };
-const DISARMED: RcState = RcState { command: [0.0; 3], arm: false, link_ok: true };
+const ARMED: RcState = RcState {
+    command: [0.3, 0.0, 0.0],
+    arm: true,
+    link_ok: true,
+};
+const DISARMED: RcState = RcState {
+    command: [0.0; 3],
+    arm: false,
+    link_ok: true,
+};
 const WALK_TARGETS: [f32; NUM_JOINTS] = [0.1; NUM_JOINTS];
 
 impl World {
@@ -34,7 +42,11 @@ impl World {
     }
 
     /// One 20 ms cycle; the policy answers `policy`.
-    fn cycle(&mut self, s: &mut Supervisor, policy: Result<[f32; NUM_JOINTS], ()>) -> (Command, bool) {
+    fn cycle(
+        &mut self,
+        s: &mut Supervisor,
+        policy: Result<[f32; NUM_JOINTS], ()>,
+    ) -> (Command, bool) {
         self.now_us += 20_000;
         let q = self.q;
         let inputs = Inputs {
@@ -104,7 +116,10 @@ fn full_cycle_boot_to_walk_to_disabled() {
     assert_eq!(s.mode(), Mode::Disabled);
     assert_eq!(cmd.requests, [DriveRequest::Disable; NUM_JOINTS]);
     for j in 0..NUM_JOINTS {
-        assert!((w.q[j] - Q_SIT_RAD[j]).abs() < 1e-5, "sat down before torque off");
+        assert!(
+            (w.q[j] - Q_SIT_RAD[j]).abs() < 1e-5,
+            "sat down before torque off"
+        );
     }
 }
 
@@ -160,11 +175,18 @@ fn assert_safe_sit_down(s: &mut Supervisor, w: &mut World, expect: Fault) {
         s.mode()
     );
     let cmd = w.run(s, 4.0);
-    assert_eq!(cmd.requests, [DriveRequest::Enable; NUM_JOINTS], "torque stays on while lowering");
+    assert_eq!(
+        cmd.requests,
+        [DriveRequest::Enable; NUM_JOINTS],
+        "torque stays on while lowering"
+    );
     w.run(s, 1.6);
     assert_eq!(s.mode(), Mode::Faulted { fault: expect });
     for j in 0..NUM_JOINTS {
-        assert!((w.q[j] - Q_SIT_RAD[j]).abs() < 1e-5, "sat down before torque off");
+        assert!(
+            (w.q[j] - Q_SIT_RAD[j]).abs() < 1e-5,
+            "sat down before torque off"
+        );
     }
 }
 
@@ -176,7 +198,10 @@ fn drive_emcy_sits_down_slowly() {
     w.drive_fault = Some((4, fault));
     let (cmd, called) = w.cycle(&mut s, Ok(WALK_TARGETS));
     assert!(!called);
-    assert_eq!(cmd.targets_rad, WALK_TARGETS, "starts from the last targets: no jump");
+    assert_eq!(
+        cmd.targets_rad, WALK_TARGETS,
+        "starts from the last targets: no jump"
+    );
     assert_safe_sit_down(&mut s, &mut w, Fault::Drive { joint: 4, fault });
 }
 
@@ -185,7 +210,14 @@ fn lost_heartbeat_sits_down_and_is_not_recoverable() {
     let (mut s, mut w) = walking();
     w.drive_fault = Some((10, NodeFault::LostHeartbeat));
     w.cycle(&mut s, Ok(WALK_TARGETS));
-    assert_safe_sit_down(&mut s, &mut w, Fault::Drive { joint: 10, fault: NodeFault::LostHeartbeat });
+    assert_safe_sit_down(
+        &mut s,
+        &mut w,
+        Fault::Drive {
+            joint: 10,
+            fault: NodeFault::LostHeartbeat,
+        },
+    );
     w.rc = DISARMED;
     let cmd = w.run(&mut s, 1.0);
     assert!(matches!(s.mode(), Mode::Faulted { .. }));
@@ -254,7 +286,12 @@ fn bus_off_holds_then_sits_when_disarmed() {
     w.cycle(&mut s, Ok(WALK_TARGETS));
     w.drive_fault = Some((2, NodeFault::BusOff));
     let cmd = w.run(&mut s, 2.0);
-    assert_eq!(s.mode(), Mode::SafeHold { fault: Fault::BusOff { bus: 0 } });
+    assert_eq!(
+        s.mode(),
+        Mode::SafeHold {
+            fault: Fault::BusOff { bus: 0 }
+        }
+    );
     assert_eq!(cmd.targets_rad, WALK_TARGETS);
     assert_eq!(cmd.requests, [DriveRequest::Enable; NUM_JOINTS]);
     w.rc = DISARMED;
@@ -275,7 +312,10 @@ fn recoverable_fault_clears_after_disarm_and_reset() {
     let (cmd, _) = w.cycle(&mut s, Ok(WALK_TARGETS));
     assert!(cmd.clear_faults);
     assert_eq!(cmd.requests, [DriveRequest::FaultReset; NUM_JOINTS]);
-    assert!(matches!(s.mode(), Mode::Faulted { .. }), "drive still reports the fault");
+    assert!(
+        matches!(s.mode(), Mode::Faulted { .. }),
+        "drive still reports the fault"
+    );
     w.drive_fault = None;
     w.cycle(&mut s, Ok(WALK_TARGETS));
     assert_eq!(s.mode(), Mode::Disabled);
@@ -302,5 +342,10 @@ fn enabling_times_out() {
     w.cycle(&mut s, Ok(WALK_TARGETS));
     w.rc = ARMED;
     w.run(&mut s, 1.1);
-    assert_eq!(s.mode(), Mode::Faulted { fault: Fault::EnableTimeout });
+    assert_eq!(
+        s.mode(),
+        Mode::Faulted {
+            fault: Fault::EnableTimeout
+        }
+    );
 }

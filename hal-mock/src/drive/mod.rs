@@ -133,7 +133,11 @@ impl Drive {
     pub fn inject_fault(&mut self, error_code: u16, out: &mut Vec<CanFrame>) {
         self.power = PowerState::Fault;
         self.objects.error_code = error_code;
-        let e = Emcy { error_code, error_register: 0x01, vendor: [0; 5] };
+        let e = Emcy {
+            error_code,
+            error_register: 0x01,
+            vendor: [0; 5],
+        };
         self.send(out, e.frame(self.node_id));
     }
 
@@ -146,15 +150,17 @@ impl Drive {
     pub fn setpoint(&self) -> Option<CspSetpoint> {
         let o = &self.objects;
         let target = match self.power {
-            PowerState::OperationEnabled if o.mode == od::MODE_CSP => {
-                o.target_position.clamp(o.position_limits[0], o.position_limits[1])
-            }
+            PowerState::OperationEnabled if o.mode == od::MODE_CSP => o
+                .target_position
+                .clamp(o.position_limits[0], o.position_limits[1]),
             PowerState::OperationEnabled | PowerState::QuickStopActive => self.hold_position,
             _ => return None,
         };
         Some(CspSetpoint {
             q_target_rad: units::increments_to_rad(target),
-            vel_limit_rad_s: units::velocity_units_to_rad_s(o.max_motor_speed.min(i32::MAX as u32) as i32),
+            vel_limit_rad_s: units::velocity_units_to_rad_s(
+                o.max_motor_speed.min(i32::MAX as u32) as i32
+            ),
             torque_limit_nm: o.max_torque as f32 * o.rated_torque_mnm as f32 * 1e-6,
         })
     }
@@ -170,7 +176,9 @@ impl Drive {
         if self.muted || frame.is_rtr() {
             return;
         }
-        let Some(c) = cob::classify(frame.cob_id()) else { return };
+        let Some(c) = cob::classify(frame.cob_id()) else {
+            return;
+        };
         let p = frame.payload();
         match c {
             Cob::Nmt => self.on_nmt(p, now_us, out),
@@ -217,16 +225,21 @@ impl Drive {
             Ok(SdoRequest::Upload { address }) => {
                 self.refresh_objects();
                 match self.objects.read(address) {
-                    Ok((value, len)) => {
-                        SdoResponse::Upload { address, data: value.to_le_bytes(), len }
-                    }
+                    Ok((value, len)) => SdoResponse::Upload {
+                        address,
+                        data: value.to_le_bytes(),
+                        len,
+                    },
                     Err(code) => SdoResponse::Abort { address, code },
                 }
             }
             Ok(SdoRequest::Abort { .. }) => return,
             Err(_) if p.len() >= 4 => {
                 let address = od::ObjectAddress::new(u16::from_le_bytes([p[1], p[2]]), p[3]);
-                SdoResponse::Abort { address, code: abort::INVALID_COMMAND }
+                SdoResponse::Abort {
+                    address,
+                    code: abort::INVALID_COMMAND,
+                }
             }
             Err(_) => {
                 self.counters.malformed += 1;
@@ -285,7 +298,11 @@ impl Drive {
             S::Fault | S::FaultReactionActive => {
                 if rising_reset {
                     self.objects.error_code = 0;
-                    let e = Emcy { error_code: emcy::ERROR_RESET, error_register: 0, vendor: [0; 5] };
+                    let e = Emcy {
+                        error_code: emcy::ERROR_RESET,
+                        error_register: 0,
+                        vendor: [0; 5],
+                    };
                     self.send(out, e.frame(self.node_id));
                     S::SwitchOnDisabled
                 } else {
@@ -327,7 +344,8 @@ impl Drive {
         if self.power.torque_on() || matches!(self.power, PowerState::SwitchedOn) {
             sw |= SW_VOLTAGE_ENABLED;
         }
-        let target_error = (o.target_position - units::rad_to_increments(self.feedback.q_rad)).abs();
+        let target_error =
+            (o.target_position - units::rad_to_increments(self.feedback.q_rad)).abs();
         if target_error < units::rad_to_increments(0.01) {
             sw |= SW_TARGET_REACHED;
         }
@@ -359,7 +377,9 @@ impl Drive {
             let mut payload = [0u8; 8];
             let mut at = 0;
             for &entry in self.objects.tpdo_map[k].active() {
-                let Some((value, bits)) = self.objects.mapped_value(entry) else { continue };
+                let Some((value, bits)) = self.objects.mapped_value(entry) else {
+                    continue;
+                };
                 let n = bits as usize / 8;
                 if at + n > 8 {
                     break;
@@ -367,7 +387,10 @@ impl Drive {
                 payload[at..at + n].copy_from_slice(&value.to_le_bytes()[..n]);
                 at += n;
             }
-            self.send(out, CanFrame::new_truncating((c.cob_id & 0x7FF) as u16, &payload[..at]));
+            self.send(
+                out,
+                CanFrame::new_truncating((c.cob_id & 0x7FF) as u16, &payload[..at]),
+            );
         }
     }
 
@@ -397,7 +420,11 @@ impl Drive {
 
     /// Communication loss: EMCY, then the reaction configured in 0x6007.
     fn on_master_lost(&mut self, out: &mut Vec<CanFrame>) {
-        let e = Emcy { error_code: emcy::HEARTBEAT_ERROR, error_register: 0x11, vendor: [0; 5] };
+        let e = Emcy {
+            error_code: emcy::HEARTBEAT_ERROR,
+            error_register: 0x11,
+            vendor: [0; 5],
+        };
         self.send(out, e.frame(self.node_id));
         match self.objects.abort_connection_option {
             od::ABORT_CONNECTION_QUICK_STOP if self.power == PowerState::OperationEnabled => {

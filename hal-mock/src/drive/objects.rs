@@ -105,13 +105,19 @@ impl Objects {
             rpdo_map: [PdoMap::default(); 4],
             // Vendor default: TPDO1 valid with the statusword, event-driven.
             tpdo_comm: [
-                PdoComm { cob_id: 0x180 + n, transmission: 255 },
+                PdoComm {
+                    cob_id: 0x180 + n,
+                    transmission: 255,
+                },
                 comm(0x280, 255),
                 comm(0x380, 255),
                 comm(0x480, 255),
             ],
             tpdo_map: [
-                PdoMap { count: 1, entries: [od::STATUSWORD.mapping(16), 0, 0, 0] },
+                PdoMap {
+                    count: 1,
+                    entries: [od::STATUSWORD.mapping(16), 0, 0, 0],
+                },
                 PdoMap::default(),
                 PdoMap::default(),
                 PdoMap::default(),
@@ -200,15 +206,31 @@ impl Objects {
             (0x1006, 0) => self.comm_cycle_us = value,
             (0x1016, 1) => self.consumer_heartbeat = value,
             (0x1017, 0) => self.producer_heartbeat_ms = value as u16,
-            (0x1400..=0x1403, s) => comm_write(&mut self.rpdo_comm[a.index as usize - 0x1400], s, value)?,
-            (0x1800..=0x1803, s) => comm_write(&mut self.tpdo_comm[a.index as usize - 0x1800], s, value)?,
+            (0x1400..=0x1403, s) => {
+                comm_write(&mut self.rpdo_comm[a.index as usize - 0x1400], s, value)?
+            }
+            (0x1800..=0x1803, s) => {
+                comm_write(&mut self.tpdo_comm[a.index as usize - 0x1800], s, value)?
+            }
             (0x1600..=0x1603, s) => {
                 let i = a.index as usize - 0x1600;
-                map_write(&mut self.rpdo_map[i], self.rpdo_comm[i].valid(), s, value, rpdo_mappable)?
+                map_write(
+                    &mut self.rpdo_map[i],
+                    self.rpdo_comm[i].valid(),
+                    s,
+                    value,
+                    rpdo_mappable,
+                )?
             }
             (0x1A00..=0x1A03, s) => {
                 let i = a.index as usize - 0x1A00;
-                map_write(&mut self.tpdo_map[i], self.tpdo_comm[i].valid(), s, value, tpdo_mappable)?
+                map_write(
+                    &mut self.tpdo_map[i],
+                    self.tpdo_comm[i].valid(),
+                    s,
+                    value,
+                    tpdo_mappable,
+                )?
             }
             (0x6007, 0) => self.abort_connection_option = value as u16 as i16,
             (0x6040, 0) => self.controlword = value as u16,
@@ -242,9 +264,19 @@ impl Objects {
 fn is_read_only(a: ObjectAddress) -> bool {
     matches!(
         (a.index, a.sub),
-        (0x1000, _) | (0x1001, _) | (0x1016, 0) | (0x603F, _) | (0x6041, _) | (0x6061, _)
-            | (0x6064, _) | (0x606C, _) | (0x6076, _) | (0x6077, _) | (0x607D, 0)
-            | (0x60C2, 0) | (0x6502, _)
+        (0x1000, _)
+            | (0x1001, _)
+            | (0x1016, 0)
+            | (0x603F, _)
+            | (0x6041, _)
+            | (0x6061, _)
+            | (0x6064, _)
+            | (0x606C, _)
+            | (0x6076, _)
+            | (0x6077, _)
+            | (0x607D, 0)
+            | (0x60C2, 0)
+            | (0x6502, _)
     ) || (matches!(a.index, 0x1400..=0x1403 | 0x1800..=0x1803) && a.sub == 0)
 }
 
@@ -338,7 +370,11 @@ fn rpdo_mappable(a: ObjectAddress, bits: u8) -> bool {
 fn tpdo_mappable(a: ObjectAddress, bits: u8) -> bool {
     matches!(
         (a.index, a.sub, bits),
-        (0x6041, 0, 16) | (0x6064, 0, 32) | (0x606C, 0, 32) | (0x6077, 0, 16) | (0x6061, 0, 8)
+        (0x6041, 0, 16)
+            | (0x6064, 0, 32)
+            | (0x606C, 0, 32)
+            | (0x6077, 0, 16)
+            | (0x6061, 0, 8)
             | (0x603F, 0, 16)
     )
 }
@@ -352,15 +388,28 @@ mod tests {
         let mut o = Objects::defaults(3, 22_500);
         assert_eq!(o.write(od::STATUSWORD, 0, 2), Err(abort::READ_ONLY));
         assert_eq!(o.write(od::CONTROLWORD, 0, 4), Err(abort::LENGTH_MISMATCH));
-        assert_eq!(o.write(ObjectAddress::new(0x2000, 0), 0, 4), Err(abort::NO_OBJECT));
-        assert_eq!(o.write(ObjectAddress::new(0x6040, 3), 0, 2), Err(abort::NO_SUBINDEX));
-        assert_eq!(o.write(od::MODES_OF_OPERATION, 3, 1), Err(abort::VALUE_RANGE));
+        assert_eq!(
+            o.write(ObjectAddress::new(0x2000, 0), 0, 4),
+            Err(abort::NO_OBJECT)
+        );
+        assert_eq!(
+            o.write(ObjectAddress::new(0x6040, 3), 0, 2),
+            Err(abort::NO_SUBINDEX)
+        );
+        assert_eq!(
+            o.write(od::MODES_OF_OPERATION, 3, 1),
+            Err(abort::VALUE_RANGE)
+        );
         assert_eq!(o.write(od::MODES_OF_OPERATION, 8, 1), Ok(()));
         // TPDO1 is valid by default: its mapping is locked.
         assert_eq!(o.write(od::tpdo_map(0, 0), 0, 1), Err(abort::DEVICE_STATE));
-        o.write(od::tpdo_comm(0, 1), od::PDO_INVALID | 0x183, 4).unwrap();
+        o.write(od::tpdo_comm(0, 1), od::PDO_INVALID | 0x183, 4)
+            .unwrap();
         o.write(od::tpdo_map(0, 0), 0, 1).unwrap();
-        assert_eq!(o.write(od::tpdo_map(0, 1), 0x6040_0010, 4), Err(abort::NOT_MAPPABLE));
+        assert_eq!(
+            o.write(od::tpdo_map(0, 1), 0x6040_0010, 4),
+            Err(abort::NOT_MAPPABLE)
+        );
         o.write(od::tpdo_map(0, 1), 0x6064_0020, 4).unwrap();
         o.write(od::tpdo_map(0, 2), 0x606C_0020, 4).unwrap();
         o.write(od::tpdo_map(0, 3), 0x6064_0020, 4).unwrap();

@@ -89,7 +89,10 @@ impl PowerState {
 
     /// True when the drive produces torque.
     pub fn torque_on(self) -> bool {
-        matches!(self, Self::OperationEnabled | Self::QuickStopActive | Self::FaultReactionActive)
+        matches!(
+            self,
+            Self::OperationEnabled | Self::QuickStopActive | Self::FaultReactionActive
+        )
     }
 }
 
@@ -154,8 +157,14 @@ mod tests {
             assert_eq!(PowerState::from_statusword(sw), s, "{sw:#06x}");
         }
         // Typical real statusword of an enabled drive in CSP.
-        assert_eq!(PowerState::from_statusword(0x1637), PowerState::OperationEnabled);
-        assert_eq!(PowerState::from_statusword(0x0250), PowerState::SwitchOnDisabled);
+        assert_eq!(
+            PowerState::from_statusword(0x1637),
+            PowerState::OperationEnabled
+        );
+        assert_eq!(
+            PowerState::from_statusword(0x0250),
+            PowerState::SwitchOnDisabled
+        );
     }
 
     #[test]
@@ -177,8 +186,17 @@ mod tests {
 
     #[test]
     fn fault_reset_is_an_edge() {
-        assert_eq!(next_controlword(PowerState::Fault, DriveRequest::FaultReset, 0), 0x80);
-        assert_eq!(next_controlword(PowerState::Fault, DriveRequest::FaultReset, 0x80), 0);
-        assert_eq!(next_controlword(PowerState::Fault, DriveRequest::Enable, 0), 0);
+        assert_eq!(
+            next_controlword(PowerState::Fault, DriveRequest::FaultReset, 0),
+            0x80
+        );
+        assert_eq!(
+            next_controlword(PowerState::Fault, DriveRequest::FaultReset, 0x80),
+            0
+        );
+        assert_eq!(
+            next_controlword(PowerState::Fault, DriveRequest::Enable, 0),
+            0
+        );
     }
 }

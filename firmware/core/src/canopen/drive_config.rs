@@ -103,8 +103,16 @@ pub fn config_step(k: usize, joint: usize, rated_torque_mnm: u32) -> Option<Conf
             (MASTER_NODE_ID as u32) << 16 | MASTER_HEARTBEAT_TIMEOUT_MS as u32,
             4,
         ),
-        5 => Write(od::ABORT_CONNECTION_OPTION, od::ABORT_CONNECTION_QUICK_STOP as u16 as u32, 2),
-        6 => Write(od::QUICK_STOP_OPTION, od::QUICK_STOP_STAY_ACTIVE as u16 as u32, 2),
+        5 => Write(
+            od::ABORT_CONNECTION_OPTION,
+            od::ABORT_CONNECTION_QUICK_STOP as u16 as u32,
+            2,
+        ),
+        6 => Write(
+            od::QUICK_STOP_OPTION,
+            od::QUICK_STOP_STAY_ACTIVE as u16 as u32,
+            2,
+        ),
         7 => Write(od::MODES_OF_OPERATION, od::MODE_CSP as u8 as u32, 1),
         8 => Write(od::INTERPOLATION_PERIOD_VALUE, SYNC_PERIOD_US / 1000, 1),
         9 => Write(od::INTERPOLATION_PERIOD_INDEX, -3i8 as u8 as u32, 1),
@@ -113,9 +121,21 @@ pub fn config_step(k: usize, joint: usize, rated_torque_mnm: u32) -> Option<Conf
             rad_s_to_velocity_units(VELOCITY_LIMIT_RAD_S[joint]) as u32,
             4,
         ),
-        11 => Write(od::MAX_TORQUE, torque_limit.clamp(0, u16::MAX as i32) as u32, 2),
-        12 => Write(od::SOFTWARE_POSITION_LIMIT_MIN, rad_to_increments(Q_MIN_RAD[joint]) as u32, 4),
-        13 => Write(od::SOFTWARE_POSITION_LIMIT_MAX, rad_to_increments(Q_MAX_RAD[joint]) as u32, 4),
+        11 => Write(
+            od::MAX_TORQUE,
+            torque_limit.clamp(0, u16::MAX as i32) as u32,
+            2,
+        ),
+        12 => Write(
+            od::SOFTWARE_POSITION_LIMIT_MIN,
+            rad_to_increments(Q_MIN_RAD[joint]) as u32,
+            4,
+        ),
+        13 => Write(
+            od::SOFTWARE_POSITION_LIMIT_MAX,
+            rad_to_increments(Q_MAX_RAD[joint]) as u32,
+            4,
+        ),
         14 => Write(od::SYNC_COB_ID, cob::SYNC as u32, 4),
         15 => Write(od::COMM_CYCLE_PERIOD, SYNC_PERIOD_US, 4),
         k if k < FIXED_STEPS + 3 * PDO_STEPS => {
@@ -140,7 +160,10 @@ pub fn config_step(k: usize, joint: usize, rated_torque_mnm: u32) -> Option<Conf
                 1 => (od::tpdo_comm(3, od::PDO_COMM_COB_ID), cob::TPDO_BASE[3]),
                 _ => {
                     let n = (u - 1) as u8;
-                    (od::rpdo_comm(n, od::PDO_COMM_COB_ID), cob::RPDO_BASE[n as usize])
+                    (
+                        od::rpdo_comm(n, od::PDO_COMM_COB_ID),
+                        cob::RPDO_BASE[n as usize],
+                    )
                 }
             };
             Write(address, od::PDO_INVALID | (base as u32 + node), 4)
@@ -189,8 +212,17 @@ mod tests {
     #[test]
     fn identification_rejects_other_devices() {
         assert_eq!(check_read(od::DEVICE_TYPE, 0x0002_0192), Ok(()));
-        assert_eq!(check_read(od::DEVICE_TYPE, 0x191), Err(IdentifyError::NotAServoDrive(0x191)));
-        assert_eq!(check_read(od::SUPPORTED_DRIVE_MODES, 0x05), Err(IdentifyError::NoCspMode));
-        assert_eq!(check_read(od::MOTOR_RATED_TORQUE, 0), Err(IdentifyError::NoRatedTorque));
+        assert_eq!(
+            check_read(od::DEVICE_TYPE, 0x191),
+            Err(IdentifyError::NotAServoDrive(0x191))
+        );
+        assert_eq!(
+            check_read(od::SUPPORTED_DRIVE_MODES, 0x05),
+            Err(IdentifyError::NoCspMode)
+        );
+        assert_eq!(
+            check_read(od::MOTOR_RATED_TORQUE, 0),
+            Err(IdentifyError::NoRatedTorque)
+        );
     }
 }

@@ -46,7 +46,16 @@ impl Emcy {
         let v = self.vendor;
         CanFrame::new_truncating(
             cob::EMCY_BASE + (node_id & 0x7F) as u16,
-            &[c[0], c[1], self.error_register, v[0], v[1], v[2], v[3], v[4]],
+            &[
+                c[0],
+                c[1],
+                self.error_register,
+                v[0],
+                v[1],
+                v[2],
+                v[3],
+                v[4],
+            ],
         )
     }
 
@@ -62,7 +71,11 @@ mod tests {
 
     #[test]
     fn emcy_round_trip() {
-        let e = Emcy { error_code: OVER_CURRENT, error_register: 0x03, vendor: [1, 2, 3, 4, 5] };
+        let e = Emcy {
+            error_code: OVER_CURRENT,
+            error_register: 0x03,
+            vendor: [1, 2, 3, 4, 5],
+        };
         let f = e.frame(12);
         assert_eq!(f.cob_id(), 0x08C);
         assert_eq!(Emcy::parse(f.payload()), Some(e));

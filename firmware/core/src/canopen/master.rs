@@ -257,7 +257,10 @@ impl Master {
         self.next_heartbeat_us = now_us;
         for j in 0..NUM_JOINTS {
             self.nodes[j] = NodeState::new();
-            self.nodes[j].phase = NodePhase::Booting { since_us: now_us, attempts: 1 };
+            self.nodes[j].phase = NodePhase::Booting {
+                since_us: now_us,
+                attempts: 1,
+            };
             self.nodes[j].fault = self.bus_off[can_bus(j)].then_some(NodeFault::BusOff);
         }
         for bus in 0..NUM_BUSES {
@@ -279,18 +282,26 @@ impl Master {
     pub fn configuring(&self) -> bool {
         self.nodes.iter().any(|n| {
             n.fault.is_none()
-                && matches!(n.phase, NodePhase::Booting { .. } | NodePhase::Configuring { .. })
+                && matches!(
+                    n.phase,
+                    NodePhase::Booting { .. } | NodePhase::Configuring { .. }
+                )
         })
     }
 
     /// The first latched fault, with its joint.
     pub fn first_fault(&self) -> Option<(usize, NodeFault)> {
-        self.nodes.iter().enumerate().find_map(|(j, n)| n.fault.map(|f| (j, f)))
+        self.nodes
+            .iter()
+            .enumerate()
+            .find_map(|(j, n)| n.fault.map(|f| (j, f)))
     }
 
     /// True when every drive is in Operation enabled.
     pub fn all_enabled(&self) -> bool {
-        self.nodes.iter().all(|n| n.is_healthy() && n.power == PowerState::OperationEnabled)
+        self.nodes
+            .iter()
+            .all(|n| n.is_healthy() && n.power == PowerState::OperationEnabled)
     }
 
     /// Joint positions, velocities and torques from the last TPDOs.
@@ -340,7 +351,9 @@ impl Master {
 
     /// Reports the bus state from the CAN driver; bus-off faults every drive on the bus.
     pub fn set_bus_off(&mut self, bus: usize, bus_off: bool) {
-        let Some(flag) = self.bus_off.get_mut(bus) else { return };
+        let Some(flag) = self.bus_off.get_mut(bus) else {
+            return;
+        };
         *flag = bus_off;
         if bus_off {
             self.tx[bus].clear();
@@ -409,7 +422,10 @@ impl Master {
         node.last_heartbeat_us = now_us;
         match (node.phase, state) {
             (NodePhase::Booting { .. }, NmtState::BootUp) => {
-                node.phase = NodePhase::Configuring { step: 0, retries: 0 };
+                node.phase = NodePhase::Configuring {
+                    step: 0,
+                    retries: 0,
+                };
                 node.sdo.cancel();
                 self.next_sdo(joint, now_us);
             }
@@ -417,7 +433,10 @@ impl Master {
             (NodePhase::Operational, _) => self.fail(joint, NodeFault::UnexpectedNmtState),
             (NodePhase::Configuring { .. }, NmtState::BootUp) => {
                 // Rebooted mid-configuration: start over.
-                node.phase = NodePhase::Configuring { step: 0, retries: 0 };
+                node.phase = NodePhase::Configuring {
+                    step: 0,
+                    retries: 0,
+                };
                 node.sdo.cancel();
                 self.next_sdo(joint, now_us);
             }
@@ -461,14 +480,19 @@ impl Master {
             }
             SdoOutcome::TimedOut(_) => return,
         }
-        node.phase = NodePhase::Configuring { step: step.saturating_add(1), retries: 0 };
+        node.phase = NodePhase::Configuring {
+            step: step.saturating_add(1),
+            retries: 0,
+        };
         self.next_sdo(joint, now_us);
     }
 
     /// Sends the current configuration step, or NMT start after the last one.
     fn next_sdo(&mut self, joint: usize, now_us: u64) {
         let node = &mut self.nodes[joint];
-        let NodePhase::Configuring { step, .. } = node.phase else { return };
+        let NodePhase::Configuring { step, .. } = node.phase else {
+            return;
+        };
         let node_id = can_node_id(joint);
         let request = match config_step(step as usize, joint, node.rated_torque_mnm) {
             Some(ConfigStep::Read(address)) => SdoRequest::Upload { address },
@@ -496,7 +520,12 @@ impl Master {
         };
         bump(&mut self.counters.emergencies);
         if !e.is_reset() {
-            self.fail(joint, NodeFault::Emergency { error_code: e.error_code });
+            self.fail(
+                joint,
+                NodeFault::Emergency {
+                    error_code: e.error_code,
+                },
+            );
         }
     }
 
@@ -511,7 +540,10 @@ impl Master {
         node.q_rad = units::increments_to_rad(t.position);
         node.got_tpdo1 = true;
         self.check_feedback(joint);
-        if matches!(self.nodes[joint].power, PowerState::Fault | PowerState::FaultReactionActive) {
+        if matches!(
+            self.nodes[joint].power,
+            PowerState::Fault | PowerState::FaultReactionActive
+        ) {
             self.fail(joint, NodeFault::DriveFault);
         }
     }
@@ -560,8 +592,10 @@ impl Master {
                         self.nodes[j].phase = NodePhase::Failed;
                         self.fail(j, NodeFault::NoBootUp);
                     } else {
-                        self.nodes[j].phase =
-                            NodePhase::Booting { since_us: now_us, attempts: attempts + 1 };
+                        self.nodes[j].phase = NodePhase::Booting {
+                            since_us: now_us,
+                            attempts: attempts + 1,
+                        };
                         self.push(can_bus(j), NmtCommand::ResetCommunication.frame(node_id));
                     }
                 }
@@ -574,8 +608,10 @@ impl Master {
                             self.nodes[j].phase = NodePhase::Failed;
                             self.fail(j, NodeFault::ConfigTimeout { address });
                         } else {
-                            self.nodes[j].phase =
-                                NodePhase::Configuring { step, retries: retries + 1 };
+                            self.nodes[j].phase = NodePhase::Configuring {
+                                step,
+                                retries: retries + 1,
+                            };
                             self.next_sdo(j, now_us);
                         }
                     }
@@ -617,7 +653,9 @@ impl Master {
 
     /// True when every reachable operational drive has answered the last SYNC.
     pub fn feedback_complete(&self) -> bool {
-        self.nodes.iter().all(|n| !n.is_reachable() || !n.awaiting_feedback)
+        self.nodes
+            .iter()
+            .all(|n| !n.is_reachable() || !n.awaiting_feedback)
     }
 
     /// Sends one RPDO per reachable drive: the controlword that moves it toward
@@ -647,7 +685,8 @@ impl Master {
                 controlword: cw,
                 target_position: units::rad_to_increments(target_rad),
             };
-            let frame = CanFrame::new_truncating(cob::RPDO_BASE[0] + can_node_id(j) as u16, &rpdo.encode());
+            let frame =
+                CanFrame::new_truncating(cob::RPDO_BASE[0] + can_node_id(j) as u16, &rpdo.encode());
             self.push(can_bus(j), frame);
         }
     }

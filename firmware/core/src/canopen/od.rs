@@ -22,7 +22,10 @@ impl ObjectAddress {
 
     /// Decodes a PDO mapping entry into (object, length in bits).
     pub const fn from_mapping(entry: u32) -> (Self, u8) {
-        (Self::new((entry >> 16) as u16, (entry >> 8) as u8), entry as u8)
+        (
+            Self::new((entry >> 16) as u16, (entry >> 8) as u8),
+            entry as u8,
+        )
     }
 }
 

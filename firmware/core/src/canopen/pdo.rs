@@ -17,8 +17,10 @@ pub const RPDO1_MAPPING: [u32; 2] = [od::CONTROLWORD.mapping(16), od::TARGET_POS
 /// TPDO1 mapping entries.
 pub const TPDO1_MAPPING: [u32; 2] = [od::STATUSWORD.mapping(16), od::POSITION_ACTUAL.mapping(32)];
 /// TPDO2 mapping entries.
-pub const TPDO2_MAPPING: [u32; 2] =
-    [od::VELOCITY_ACTUAL.mapping(32), od::TORQUE_ACTUAL.mapping(16)];
+pub const TPDO2_MAPPING: [u32; 2] = [
+    od::VELOCITY_ACTUAL.mapping(32),
+    od::TORQUE_ACTUAL.mapping(16),
+];
 
 /// RPDO1: the command to a drive.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -65,7 +67,10 @@ impl Rpdo1 {
 
     /// Decodes a payload; `None` unless it has exactly 6 bytes.
     pub fn decode(p: &[u8]) -> Option<Self> {
-        (p.len() == 6).then(|| Self { controlword: u16_at(p, 0), target_position: i32_at(p, 2) })
+        (p.len() == 6).then(|| Self {
+            controlword: u16_at(p, 0),
+            target_position: i32_at(p, 2),
+        })
     }
 }
 
@@ -79,7 +84,10 @@ impl Tpdo1 {
 
     /// Decodes a payload; `None` unless it has exactly 6 bytes.
     pub fn decode(p: &[u8]) -> Option<Self> {
-        (p.len() == 6).then(|| Self { statusword: u16_at(p, 0), position: i32_at(p, 2) })
+        (p.len() == 6).then(|| Self {
+            statusword: u16_at(p, 0),
+            position: i32_at(p, 2),
+        })
     }
 }
 
@@ -93,7 +101,10 @@ impl Tpdo2 {
 
     /// Decodes a payload; `None` unless it has exactly 6 bytes.
     pub fn decode(p: &[u8]) -> Option<Self> {
-        (p.len() == 6).then(|| Self { velocity: i32_at(p, 0), torque: u16_at(p, 4) as i16 })
+        (p.len() == 6).then(|| Self {
+            velocity: i32_at(p, 0),
+            torque: u16_at(p, 4) as i16,
+        })
     }
 }
 
@@ -110,11 +121,20 @@ mod tests {
 
     #[test]
     fn payloads_round_trip() {
-        let r = Rpdo1 { controlword: 0x000F, target_position: -123_456 };
+        let r = Rpdo1 {
+            controlword: 0x000F,
+            target_position: -123_456,
+        };
         assert_eq!(Rpdo1::decode(&r.encode()), Some(r));
-        let t = Tpdo1 { statusword: 0x1637, position: 98_765 };
+        let t = Tpdo1 {
+            statusword: 0x1637,
+            position: 98_765,
+        };
         assert_eq!(Tpdo1::decode(&t.encode()), Some(t));
-        let t = Tpdo2 { velocity: -1_000_000, torque: -1500 };
+        let t = Tpdo2 {
+            velocity: -1_000_000,
+            torque: -1500,
+        };
         assert_eq!(Tpdo2::decode(&t.encode()), Some(t));
         assert_eq!(Tpdo2::decode(&[0; 5]), None);
     }

@@ -111,7 +111,16 @@ fn frame(cob_id: u16, cs: u8, address: ObjectAddress, data: [u8; 4]) -> CanFrame
     let i = address.index.to_le_bytes();
     CanFrame::new_truncating(
         cob_id,
-        &[cs, i[0], i[1], address.sub, data[0], data[1], data[2], data[3]],
+        &[
+            cs,
+            i[0],
+            i[1],
+            address.sub,
+            data[0],
+            data[1],
+            data[2],
+            data[3],
+        ],
     )
 }
 
@@ -132,7 +141,11 @@ fn expedited_len(cs: u8) -> Option<u8> {
 impl SdoRequest {
     /// A download of a `u32`/`i32` (4 bytes), `u16`/`i16` (2) or `u8`/`i8` (1) value.
     pub fn download(address: ObjectAddress, value: u32, len: u8) -> Self {
-        Self::Download { address, data: value.to_le_bytes(), len: len.clamp(1, 4) }
+        Self::Download {
+            address,
+            data: value.to_le_bytes(),
+            len: len.clamp(1, 4),
+        }
     }
 
     /// The request frame to `node_id`'s SDO server.
@@ -156,11 +169,18 @@ impl SdoRequest {
         let address = address_of(p);
         match cs >> 5 {
             1 => match expedited_len(cs) {
-                Some(len) => Ok(Self::Download { address, data: mask(data_of(p), len), len }),
+                Some(len) => Ok(Self::Download {
+                    address,
+                    data: mask(data_of(p), len),
+                    len,
+                }),
                 None => Err(SdoParseError::UnsupportedCommand(cs)),
             },
             2 => Ok(Self::Upload { address }),
-            4 => Ok(Self::Abort { address, code: u32::from_le_bytes(data_of(p)) }),
+            4 => Ok(Self::Abort {
+                address,
+                code: u32::from_le_bytes(data_of(p)),
+            }),
             _ => Err(SdoParseError::UnsupportedCommand(cs)),
         }
     }
@@ -198,10 +218,17 @@ impl SdoResponse {
         match cs >> 5 {
             3 => Ok(Self::DownloadAck { address }),
             2 => match expedited_len(cs) {
-                Some(len) => Ok(Self::Upload { address, data: mask(data_of(p), len), len }),
+                Some(len) => Ok(Self::Upload {
+                    address,
+                    data: mask(data_of(p), len),
+                    len,
+                }),
                 None => Err(SdoParseError::UnsupportedCommand(cs)),
             },
-            4 => Ok(Self::Abort { address, code: u32::from_le_bytes(data_of(p)) }),
+            4 => Ok(Self::Abort {
+                address,
+                code: u32::from_le_bytes(data_of(p)),
+            }),
             _ => Err(SdoParseError::UnsupportedCommand(cs)),
         }
     }
@@ -248,14 +275,24 @@ mod tests {
             SdoRequest::download(a, 0x1234, 2),
             SdoRequest::download(a, 0x12, 1),
             SdoRequest::Upload { address: a },
-            SdoRequest::Abort { address: a, code: abort::NO_OBJECT },
+            SdoRequest::Abort {
+                address: a,
+                code: abort::NO_OBJECT,
+            },
         ] {
             assert_eq!(SdoRequest::parse(req.frame(1).payload()), Ok(req));
         }
         for resp in [
             SdoResponse::DownloadAck { address: a },
-            SdoResponse::Upload { address: a, data: [1, 2, 3, 0], len: 3 },
-            SdoResponse::Abort { address: a, code: abort::READ_ONLY },
+            SdoResponse::Upload {
+                address: a,
+                data: [1, 2, 3, 0],
+                len: 3,
+            },
+            SdoResponse::Abort {
+                address: a,
+                code: abort::READ_ONLY,
+            },
         ] {
             assert_eq!(SdoResponse::parse(resp.frame(1).payload()), Ok(resp));
         }
@@ -268,7 +305,10 @@ mod tests {
             SdoResponse::parse(&[0x41, 0, 0x10, 0, 20, 0, 0, 0]),
             Err(SdoParseError::UnsupportedCommand(0x41))
         );
-        assert_eq!(SdoRequest::parse(&[0x40, 0, 0x10]), Err(SdoParseError::BadLength));
+        assert_eq!(
+            SdoRequest::parse(&[0x40, 0, 0x10]),
+            Err(SdoParseError::BadLength)
+        );
         assert_eq!(
             SdoRequest::parse(&[0xC0, 0, 0x10, 0, 0, 0, 0, 0]),
             Err(SdoParseError::UnsupportedCommand(0xC0))

@@ -57,7 +57,10 @@ impl SdoClient {
         if self.pending.is_some() {
             return None;
         }
-        self.pending = Some(Pending { request, deadline_us: now_us + SDO_TIMEOUT_US });
+        self.pending = Some(Pending {
+            request,
+            deadline_us: now_us + SDO_TIMEOUT_US,
+        });
         Some(request.frame(node_id))
     }
 
@@ -96,7 +99,10 @@ impl SdoClient {
         }
         self.pending = None;
         let address = pending.request.address();
-        let abort = SdoRequest::Abort { address, code: abort::TIMEOUT };
+        let abort = SdoRequest::Abort {
+            address,
+            code: abort::TIMEOUT,
+        };
         Some((SdoOutcome::TimedOut(address), abort.frame(node_id)))
     }
 }
@@ -109,24 +115,54 @@ mod tests {
     #[test]
     fn matches_responses_to_the_running_request() {
         let mut c = SdoClient::default();
-        let f = c.start(SdoRequest::Upload { address: od::DEVICE_TYPE }, 4, 0).unwrap();
+        let f = c
+            .start(
+                SdoRequest::Upload {
+                    address: od::DEVICE_TYPE,
+                },
+                4,
+                0,
+            )
+            .unwrap();
         assert_eq!(f.cob_id(), 0x604);
-        assert!(c.start(SdoRequest::Upload { address: od::STATUSWORD }, 4, 0).is_none());
-        let wrong = SdoResponse::DownloadAck { address: od::STATUSWORD }.frame(4);
-        assert_eq!(c.on_response(wrong.payload()), Err(SdoClientError::Unexpected));
-        let ok = SdoResponse::Upload { address: od::DEVICE_TYPE, data: [0x92, 1, 2, 0], len: 4 };
+        assert!(c
+            .start(
+                SdoRequest::Upload {
+                    address: od::STATUSWORD
+                },
+                4,
+                0
+            )
+            .is_none());
+        let wrong = SdoResponse::DownloadAck {
+            address: od::STATUSWORD,
+        }
+        .frame(4);
+        assert_eq!(
+            c.on_response(wrong.payload()),
+            Err(SdoClientError::Unexpected)
+        );
+        let ok = SdoResponse::Upload {
+            address: od::DEVICE_TYPE,
+            data: [0x92, 1, 2, 0],
+            len: 4,
+        };
         assert_eq!(
             c.on_response(ok.frame(4).payload()),
             Ok(SdoOutcome::Read(od::DEVICE_TYPE, 0x0002_0192, 4))
         );
         assert!(c.is_idle());
-        assert_eq!(c.on_response(ok.frame(4).payload()), Err(SdoClientError::Unexpected));
+        assert_eq!(
+            c.on_response(ok.frame(4).payload()),
+            Err(SdoClientError::Unexpected)
+        );
     }
 
     #[test]
     fn times_out_with_an_abort_frame() {
         let mut c = SdoClient::default();
-        c.start(SdoRequest::download(od::MAX_TORQUE, 1000, 2), 2, 1_000).unwrap();
+        c.start(SdoRequest::download(od::MAX_TORQUE, 1000, 2), 2, 1_000)
+            .unwrap();
         assert!(c.poll_timeout(2, 1_000 + SDO_TIMEOUT_US - 1).is_none());
         let (outcome, frame) = c.poll_timeout(2, 1_000 + SDO_TIMEOUT_US).unwrap();
         assert_eq!(outcome, SdoOutcome::TimedOut(od::MAX_TORQUE));
@@ -138,8 +174,13 @@ mod tests {
     #[test]
     fn aborts_are_reported() {
         let mut c = SdoClient::default();
-        c.start(SdoRequest::download(od::STATUSWORD, 0, 2), 2, 0).unwrap();
-        let r = SdoResponse::Abort { address: od::STATUSWORD, code: abort::READ_ONLY }.frame(2);
+        c.start(SdoRequest::download(od::STATUSWORD, 0, 2), 2, 0)
+            .unwrap();
+        let r = SdoResponse::Abort {
+            address: od::STATUSWORD,
+            code: abort::READ_ONLY,
+        }
+        .frame(2);
         assert_eq!(
             c.on_response(r.payload()),
             Ok(SdoOutcome::Aborted(od::STATUSWORD, abort::READ_ONLY))

@@ -70,7 +70,10 @@ mod tests {
 
     #[test]
     fn velocity_units_are_increments_per_second() {
-        assert_eq!(rad_s_to_velocity_units(1.0), INCREMENTS_PER_RAD.round() as i32);
+        assert_eq!(
+            rad_s_to_velocity_units(1.0),
+            INCREMENTS_PER_RAD.round() as i32
+        );
         assert!((velocity_units_to_rad_s(rad_s_to_velocity_units(12.0)) - 12.0).abs() < 1e-4);
     }
 }

@@ -31,7 +31,11 @@ pub fn crc8_dvb_s2(bytes: &[u8]) -> u8 {
     for &b in bytes {
         crc ^= b;
         for _ in 0..8 {
-            crc = if crc & 0x80 != 0 { (crc << 1) ^ 0xD5 } else { crc << 1 };
+            crc = if crc & 0x80 != 0 {
+                (crc << 1) ^ 0xD5
+            } else {
+                crc << 1
+            };
         }
     }
     crc
@@ -107,7 +111,12 @@ impl CrsfParser {
         Self {
             buf: [0; MAX_FRAME_LEN],
             len: 0,
-            counters: CrsfCounters { crc_errors: 0, bad_length: 0, skipped_bytes: 0, frames: 0 },
+            counters: CrsfCounters {
+                crc_errors: 0,
+                bad_length: 0,
+                skipped_bytes: 0,
+                frames: 0,
+            },
         }
     }
 
@@ -274,11 +283,17 @@ mod tests {
             *c = CHANNEL_MIN + 100 * i as u16;
         }
         ch[15] = 0x7FF;
-        let ls = LinkStatistics { uplink_link_quality: 100, uplink_snr: -7, ..Default::default() };
+        let ls = LinkStatistics {
+            uplink_link_quality: 100,
+            uplink_snr: -7,
+            ..Default::default()
+        };
         let mut stream = heapless::Vec::<u8, 64>::new();
         stream.extend_from_slice(&[0x00, 0xC8, 0x99]).unwrap(); // noise and a bad length
         stream.extend_from_slice(&encode_rc_channels(&ch)).unwrap();
-        stream.extend_from_slice(&encode_link_statistics(&ls)).unwrap();
+        stream
+            .extend_from_slice(&encode_link_statistics(&ls))
+            .unwrap();
         let mut p = CrsfParser::new();
         let frames = parse_all(&mut p, &stream);
         assert_eq!(

@@ -54,7 +54,11 @@ pub struct RcState {
 
 impl RcState {
     /// The failsafe state.
-    pub const FAILSAFE: Self = Self { command: [0.0; 3], arm: false, link_ok: false };
+    pub const FAILSAFE: Self = Self {
+        command: [0.0; 3],
+        arm: false,
+        link_ok: false,
+    };
 }
 
 /// The receiver: parser, last channels, failsafe.
@@ -147,13 +151,29 @@ mod tests {
     fn sticks_map_to_the_command() {
         let mut rx = RcReceiver::new(RcConfig::default());
         assert_eq!(rx.state(0), RcState::FAILSAFE);
-        rx.feed(&encode_rc_channels(&channels(CHANNEL_MAX, CHANNEL_MAX, CHANNEL_MIN, CHANNEL_MAX)), 1_000);
+        rx.feed(
+            &encode_rc_channels(&channels(
+                CHANNEL_MAX,
+                CHANNEL_MAX,
+                CHANNEL_MIN,
+                CHANNEL_MAX,
+            )),
+            1_000,
+        );
         let s = rx.state(2_000);
         assert!(s.link_ok && s.arm);
         assert!((s.command[0] - 1.0).abs() < 0.01, "{s:?}");
         assert!((s.command[1] + 0.5).abs() < 0.01, "{s:?}");
         assert!((s.command[2] - 1.0).abs() < 0.01, "{s:?}");
-        rx.feed(&encode_rc_channels(&channels(CHANNEL_MID + 20, CHANNEL_MID, CHANNEL_MID, CHANNEL_MIN)), 3_000);
+        rx.feed(
+            &encode_rc_channels(&channels(
+                CHANNEL_MID + 20,
+                CHANNEL_MID,
+                CHANNEL_MID,
+                CHANNEL_MIN,
+            )),
+            3_000,
+        );
         let s = rx.state(3_000);
         assert_eq!(s.command, [0.0; 3], "inside the deadband");
         assert!(!s.arm);
@@ -162,12 +182,31 @@ mod tests {
     #[test]
     fn failsafe_after_timeout_or_zero_link_quality() {
         let mut rx = RcReceiver::new(RcConfig::default());
-        rx.feed(&encode_rc_channels(&channels(CHANNEL_MAX, CHANNEL_MID, CHANNEL_MID, CHANNEL_MAX)), 0);
+        rx.feed(
+            &encode_rc_channels(&channels(
+                CHANNEL_MAX,
+                CHANNEL_MID,
+                CHANNEL_MID,
+                CHANNEL_MAX,
+            )),
+            0,
+        );
         assert!(rx.state(200_000).arm);
         assert_eq!(rx.state(200_001), RcState::FAILSAFE);
-        rx.feed(&encode_rc_channels(&channels(CHANNEL_MAX, CHANNEL_MID, CHANNEL_MID, CHANNEL_MAX)), 300_000);
+        rx.feed(
+            &encode_rc_channels(&channels(
+                CHANNEL_MAX,
+                CHANNEL_MID,
+                CHANNEL_MID,
+                CHANNEL_MAX,
+            )),
+            300_000,
+        );
         assert!(rx.state(300_000).link_ok);
-        let lost = LinkStatistics { uplink_link_quality: 0, ..Default::default() };
+        let lost = LinkStatistics {
+            uplink_link_quality: 0,
+            ..Default::default()
+        };
         rx.feed(&encode_link_statistics(&lost), 300_000);
         assert_eq!(rx.state(300_000), RcState::FAILSAFE);
     }

@@ -267,7 +267,7 @@ impl Default for RunnerConfig {
 }
 
 /// The complete training configuration.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TrainConfig {
     /// Environment.
@@ -282,6 +282,16 @@ pub struct TrainConfig {
     pub amp: AmpConfig,
     /// Runner.
     pub runner: RunnerConfig,
+    /// The simulator (terrain, commands, reward scales, randomization, pushes) when
+    /// `env.kind = "sim"`. Its `num_envs` and `seed` are taken from `[env]`, and its
+    /// `rewards.task` / `rewards.regularization` switches from `[rewards]`.
+    pub sim: host_sim::config::EnvConfig,
+}
+
+impl PartialEq for TrainConfig {
+    fn eq(&self, other: &Self) -> bool {
+        self.to_toml_string() == other.to_toml_string()
+    }
 }
 
 impl TrainConfig {
@@ -303,6 +313,16 @@ impl TrainConfig {
     /// The resolved configuration as TOML (every key written).
     pub fn to_toml_string(&self) -> String {
         toml::to_string_pretty(self).expect("the config is always representable in TOML")
+    }
+
+    /// The simulator config with the trainer's overrides applied.
+    pub fn resolved_sim(&self) -> host_sim::config::EnvConfig {
+        let mut sim = self.sim.clone();
+        sim.num_envs = self.env.num_envs;
+        sim.seed = self.env.seed;
+        sim.rewards.task = self.rewards.task;
+        sim.rewards.regularization = self.rewards.penalties;
+        sim
     }
 
     /// Whether the discriminator is trained and its reward used.
@@ -353,6 +373,9 @@ impl TrainConfig {
         if !self.rewards.task && !self.rewards.style && !self.rewards.penalties {
             return bad("at least one reward term must be on");
         }
+        if self.env.kind == EnvKind::Sim {
+            self.resolved_sim().validate("[sim]").map_err(|e| ConfigError::Invalid(e.to_string()))?;
+        }
         if self.runner.save_interval == 0 {
             return bad("runner.save_interval must be positive");
         }
@@ -369,6 +392,26 @@ mod tests {
         let cfg = TrainConfig::default();
         let back = TrainConfig::from_toml_str(&cfg.to_toml_string(), "test").unwrap();
         assert_eq!(cfg, back);
+    }
+
+    #[test]
+    fn every_preset_parses_and_validates() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
+        let mut names = Vec::new();
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "toml") {
+                let cfg = TrainConfig::load(&path).unwrap_or_else(|e| panic!("{e}"));
+                names.push((path.file_stem().unwrap().to_string_lossy().to_string(), cfg));
+            }
+        }
+        let get = |n: &str| &names.iter().find(|(k, _)| k == n).unwrap_or_else(|| panic!("preset {n}")).1;
+        assert!(!get("ablation-gl").amp_enabled());
+        assert!(!get("ablation-gs").rewards.penalties);
+        assert!(!get("baseline").policy.use_estimator && !get("baseline").policy.privileged_critic);
+        assert!(get("concurrent").policy.use_estimator && !get("concurrent").policy.privileged_critic);
+        assert_eq!(get("paper").env.num_envs, 4096);
+        assert_eq!(get("paper").amp.discriminator_hidden, vec![1024, 512]);
     }
 
     #[test]

@@ -9,9 +9,9 @@ use host_sim::vec_env::VecEnv;
 /// Why an environment could not be created.
 #[derive(Debug, thiserror::Error)]
 pub enum EnvError {
-    /// The requested environment is not available in this build.
-    #[error("environment `{0}` is not available: {1}")]
-    Unavailable(String, String),
+    /// The simulator could not be built.
+    #[error("simulator: {0}")]
+    Sim(#[from] host_sim::env::EnvError),
 }
 
 /// Creates the environment a config asks for.
@@ -24,9 +24,6 @@ pub fn make_env(cfg: &TrainConfig) -> Result<Box<dyn VecEnv>, EnvError> {
             cfg.rewards.penalties,
             cfg.env.seed,
         ))),
-        EnvKind::Sim => Err(EnvError::Unavailable(
-            "sim".into(),
-            "host-sim does not provide a VecEnv implementation yet; use env.kind = \"fake\"".into(),
-        )),
+        EnvKind::Sim => Ok(Box::new(host_sim::env::HexapodEnv::new(cfg.resolved_sim())?)),
     }
 }

@@ -1,0 +1,113 @@
+//! Smoke training on the point-mass stand-in: PPO + AMP improve, checkpoints round-trip
+//! through resume, a NaN stops the run and keeps the last good checkpoint.
+
+use host_sim::vec_env::{Observations, StepResult, VecEnv};
+use host_train::amp::prior_source::{MotionPriorSource, SyntheticTripod};
+use host_train::checkpoint;
+use host_train::config::TrainConfig;
+use host_train::env::fake::PointMassEnv;
+use host_train::error::TrainError;
+use host_train::runner::Runner;
+use std::path::{Path, PathBuf};
+
+fn smoke_config() -> TrainConfig {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/smoke.toml");
+    TrainConfig::load(&path).unwrap()
+}
+
+fn run_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("hexapod-smoke-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+fn env_for(cfg: &TrainConfig) -> Box<dyn VecEnv> {
+    Box::new(PointMassEnv::new(cfg.env.num_envs, cfg.env.fake_episode_steps, cfg.rewards.task, cfg.rewards.penalties, cfg.env.seed))
+}
+
+fn priors() -> Option<Box<dyn MotionPriorSource>> {
+    Some(Box::new(SyntheticTripod::default()))
+}
+
+fn mean(rows: &[std::collections::BTreeMap<String, f64>], key: &str) -> f64 {
+    rows.iter().map(|r| r[key]).sum::<f64>() / rows.len() as f64
+}
+
+#[test]
+fn ppo_with_amp_learns_and_resumes() {
+    let mut cfg = smoke_config();
+    cfg.runner.max_iterations = 40;
+    cfg.runner.save_interval = 20;
+    let dir = run_dir("learn");
+    let mut runner = Runner::new(&cfg, env_for(&cfg), priors(), &dir).unwrap();
+    let last = runner.learn(false).unwrap();
+    let rows = runner.metrics.rows();
+    let (first, end) = (&rows[..8], &rows[rows.len() - 8..]);
+    // The estimator learns the velocity from the joint history.
+    assert!(mean(end, "estimator/error_m_s") < 0.5 * mean(first, "estimator/error_m_s"));
+    // The discriminator separates prior from policy transitions.
+    assert!(mean(end, "amp/d_prior") > 0.5 && mean(end, "amp/d_policy") < -0.5);
+    // The policy tracks its commands better and collects more task reward.
+    assert!(mean(end, "tracking/lin_vel_error_m_s") < mean(first, "tracking/lin_vel_error_m_s"));
+    assert!(mean(end, "reward/env") > mean(first, "reward/env"));
+    assert!(dir.join("metrics.csv").exists() && dir.join("plots/reward_terms.png").exists());
+    assert_eq!(last, dir.join("checkpoints/model_000040"));
+
+    // Resume from the middle checkpoint: same iteration counter, training continues.
+    let mid = dir.join("checkpoints/model_000020");
+    let mut cfg2 = checkpoint::load_config(&mid).unwrap();
+    cfg2.runner.max_iterations = 22;
+    let mut resumed = Runner::new(&cfg2, env_for(&cfg2), priors(), &run_dir("resume")).unwrap();
+    resumed.resume(&mid).unwrap();
+    assert_eq!(resumed.iteration, 20);
+    assert!(resumed.ppo.ac.norm_actor.count() > 0.0, "normalizers restored");
+    resumed.learn(false).unwrap();
+    assert_eq!(resumed.metrics.rows().len(), 2);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Returns NaN rewards from the `after`-th step on.
+struct PoisonedEnv {
+    inner: PointMassEnv,
+    steps: usize,
+    after: usize,
+}
+
+impl VecEnv for PoisonedEnv {
+    fn num_envs(&self) -> usize {
+        self.inner.num_envs()
+    }
+    fn reset(&mut self) -> Observations {
+        self.inner.reset()
+    }
+    fn step(&mut self, actions: &[f32]) -> StepResult {
+        let mut r = self.inner.step(actions);
+        self.steps += 1;
+        if self.steps > self.after {
+            r.rewards.iter_mut().for_each(|x| *x = f32::NAN);
+        }
+        r
+    }
+}
+
+#[test]
+fn nan_loss_stops_the_run_and_keeps_the_last_good_checkpoint() {
+    let mut cfg = smoke_config();
+    cfg.env.num_envs = 8;
+    cfg.runner.max_iterations = 10;
+    cfg.runner.save_interval = 2;
+    let steps = cfg.ppo.num_steps_per_env;
+    let env = PoisonedEnv { inner: PointMassEnv::new(8, 100, true, true, 1), steps: 0, after: 3 * steps + 5 };
+    let dir = run_dir("nan");
+    let mut runner = Runner::new(&cfg, Box::new(env), priors(), &dir).unwrap();
+    let err = runner.learn(false).unwrap_err();
+    assert!(matches!(err.source, TrainError::NonFiniteLoss { iteration: 3, .. }), "{err}");
+    let good = dir.join("checkpoints/model_000002");
+    assert_eq!(err.last_checkpoint.as_deref(), Some(good.as_path()));
+    assert!(err.to_string().contains("model_000002"), "{err}");
+    // The last good checkpoint loads and holds finite weights.
+    let (_, ppo) = checkpoint::load_for_inference(&good).unwrap();
+    let w = ppo.ac.actor.layers()[0].weight().flatten_all().unwrap().to_vec1::<f32>().unwrap();
+    assert!(w.iter().all(|x| x.is_finite()));
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -104,7 +104,7 @@ impl<P: JointPlant> Harness<P> {
                 .service_bus(bus, &mut self.rig.buses[bus], now);
         }
         self.now_us += TICK_US;
-        if self.now_us % PHYSICS_US == 0 {
+        if self.now_us.is_multiple_of(PHYSICS_US) {
             physics(&mut self.plant, PHYSICS_DT_S);
         }
     }

@@ -75,7 +75,7 @@ impl RcSource {
             }
             self.bytes.extend(encode_rc_channels(&self.channels));
             self.frames += 1;
-            if self.frames % 10 == 0 {
+            if self.frames.is_multiple_of(10) {
                 let ls = LinkStatistics {
                     uplink_link_quality: 100,
                     uplink_rssi_1: 60,

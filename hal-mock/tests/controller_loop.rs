@@ -1,5 +1,6 @@
 //! The controller core in the loop with the emulated drives, IMU and RC: boot, stand up,
 //! walk, sit down, and every fault reaction, all through CAN frames and CRSF bytes.
+#![allow(clippy::needless_range_loop)]
 
 use hal_mock::candump::parse_line;
 use hal_mock::harness::Harness;

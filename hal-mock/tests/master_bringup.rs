@@ -1,6 +1,7 @@
 //! The CiA 402 master brings the 18 emulated drives to Operation enabled purely through
 //! frames on the virtual buses, runs the cyclic exchange, and detects lost heartbeats,
 //! EMCY and bus-off.
+#![allow(clippy::needless_range_loop)]
 
 use hal_mock::plant::JointModel;
 use hal_mock::rig::DriveRig;
@@ -49,7 +50,7 @@ impl Bench {
             }
         }
         self.now_us += STEP_US;
-        if self.now_us % 5_000 == 0 {
+        if self.now_us.is_multiple_of(5_000) {
             self.plant.step(PHYSICS_DT_S);
         }
     }

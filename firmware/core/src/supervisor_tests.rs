@@ -1,4 +1,5 @@
 //! Tests of the supervisor: every transition and every fault reaction.
+#![allow(clippy::needless_range_loop)]
 
 use super::*;
 

@@ -182,11 +182,10 @@ impl Drive {
         let p = frame.payload();
         match c {
             Cob::Nmt => self.on_nmt(p, now_us, out),
-            Cob::Heartbeat(n) => {
-                if n as u32 == (self.objects.consumer_heartbeat >> 16) & 0x7F {
-                    self.master_heartbeat_us = Some(now_us);
-                }
+            Cob::Heartbeat(n) if n as u32 == (self.objects.consumer_heartbeat >> 16) & 0x7F => {
+                self.master_heartbeat_us = Some(now_us);
             }
+            Cob::Heartbeat(_) => {}
             _ if frame.cob_id() == (self.objects.sync_cob_id & 0x7FF) as u16 => self.on_sync(out),
             Cob::SdoRx(n) if n == self.node_id => self.on_sdo(p, out),
             Cob::Rpdo(..) if self.nmt == NmtState::Operational => self.on_rpdo(frame, out),

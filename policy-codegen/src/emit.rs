@@ -73,6 +73,12 @@ fn layer_statics(out: &mut String, name: &str, k: usize, l: &OwnedLayer) {
         l.shift.len()
     );
     words_literal(out, l.shift.iter().map(|s| s.to_string()));
+    let _ = write!(
+        out,
+        ";\nstatic {name}_{k}_FRAC_BITS: [u8; {}] = ",
+        l.out_frac_bits.len()
+    );
+    words_literal(out, l.out_frac_bits.iter().map(|s| s.to_string()));
     out.push_str(";\n");
 }
 
@@ -95,8 +101,8 @@ fn net_file(p: &Provenance, net: &str, doc: &str, layers: &[OwnedLayer]) -> Stri
         let _ = write!(
             s,
             "QuantizedLayer {{ in_dim: {}, out_dim: {}, weights: &{upper}_{k}_WEIGHTS, bias: &{upper}_{k}_BIAS, \
-             multiplier: &{upper}_{k}_MULTIPLIER, shift: &{upper}_{k}_SHIFT, out_frac_bits: {}, activation: Activation::{act} }},",
-            l.in_dim, l.out_dim, l.out_frac_bits
+             multiplier: &{upper}_{k}_MULTIPLIER, shift: &{upper}_{k}_SHIFT, out_frac_bits: &{upper}_{k}_FRAC_BITS, activation: Activation::{act} }},",
+            l.in_dim, l.out_dim
         );
     }
     s.push_str("];\n\n");

@@ -6,6 +6,7 @@
 //! ELF against the STM32H743's memory map ([`size`]).
 
 pub mod accuracy;
+pub mod bench;
 pub mod checkpoint;
 pub mod emit;
 pub mod forward;

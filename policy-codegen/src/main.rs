@@ -3,7 +3,9 @@
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
-use policy_codegen::{accuracy, checkpoint, emit, onnx, quantize_default, random, records, size};
+use policy_codegen::{
+    accuracy, bench, checkpoint, emit, onnx, quantize_default, random, records, size,
+};
 use std::path::{Path, PathBuf};
 
 #[derive(Parser)]
@@ -50,6 +52,18 @@ enum Cmd {
         /// Synthetic observations when no recording is given.
         #[arg(long, default_value_t = 10_000)]
         count: usize,
+    },
+    /// Compares the QEMU benchmark's output with the host's fixed-point step on the same
+    /// input (bit for bit) and checks the instructions per MAC.
+    BenchCheck {
+        /// Captured stdout of `firmware/qemu-bench` (`cargo run --release`).
+        output: PathBuf,
+        /// Checkpoint the crate was generated from.
+        #[arg(long, default_value = "assets/policies/random-init")]
+        checkpoint: PathBuf,
+        /// Fail above this many instructions per MAC (SMLALD kernel).
+        #[arg(long, default_value_t = 1.5)]
+        max_insns_per_mac: f32,
     },
     /// Checks a firmware ELF's flash and RAM use against memory.x.
     Size {
@@ -163,6 +177,36 @@ fn main() -> Result<()> {
                 r.mean_abs_diff,
                 r.max_abs_action
             );
+        }
+        Cmd::BenchCheck {
+            output,
+            checkpoint: dir,
+            max_insns_per_mac,
+        } => {
+            let text = std::fs::read_to_string(&output)
+                .with_context(|| format!("reading {}", output.display()))?;
+            let bench = bench::parse(&text)?;
+            let q = quantize_default(&checkpoint::load(&dir)?.policy)?;
+            let host = q
+                .with_view(bench::host_action_q)
+                .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            if bench.action_q != host {
+                bail!(
+                    "QEMU output {:?} differs from the host's {:?}",
+                    bench.action_q,
+                    host
+                );
+            }
+            println!(
+                "QEMU and host agree bit for bit on {} actions; {:.0} instructions/step, {:.3} instructions/MAC (SMLALD), {:.3} (portable)",
+                host.len(), bench.smlald_insns, bench.smlald_per_mac, bench.portable_per_mac
+            );
+            if bench.smlald_per_mac > max_insns_per_mac {
+                bail!(
+                    "{:.3} instructions/MAC exceeds the budget {max_insns_per_mac}",
+                    bench.smlald_per_mac
+                );
+            }
         }
         Cmd::Size { elf, memory_x } => {
             let report = size::check(&elf, &memory_x)?;

@@ -6,7 +6,7 @@
 //! normalizer's `|mean| + 8 std`. The normalizer is folded into the first layer: column
 //! `i` gets `W[:, i] / std_i` (and `/ scale_i` for the input quantization), the bias
 //! `b - W mean / std`. Hidden activations use a power-of-two format per layer from the
-//! calibration (2x headroom). Weights: `i16` per output channel (largest magnitude ->
+//! calibration (2x headroom) per channel. Weights: `i16` per output channel (largest magnitude ->
 //! 32767). The requantization multiplier of each channel is as wide as the worst-case
 //! accumulator allows (`|acc| * multiplier < 2^62`, from the channel's own weights), so
 //! the `i64` pipeline can never overflow.
@@ -61,8 +61,8 @@ pub struct OwnedLayer {
     pub multiplier: Vec<i32>,
     /// Requantization shifts.
     pub shift: Vec<u8>,
-    /// Output fractional bits.
-    pub out_frac_bits: u8,
+    /// Output fractional bits per channel (padded like `bias`).
+    pub out_frac_bits: Vec<u8>,
     /// Nonlinearity.
     pub activation: Activation,
 }
@@ -77,7 +77,7 @@ impl OwnedLayer {
             bias: &self.bias,
             multiplier: &self.multiplier,
             shift: &self.shift,
-            out_frac_bits: self.out_frac_bits,
+            out_frac_bits: &self.out_frac_bits,
             activation: self.activation,
         }
     }
@@ -122,12 +122,12 @@ pub struct Calibration {
     pub history_absmax: Vec<f64>,
     /// Per actor observation entry.
     pub actor_obs_absmax: Vec<f64>,
-    /// Per estimator layer output.
-    pub estimator: Vec<f64>,
-    /// Per memory layer output.
-    pub memory: Vec<f64>,
-    /// Per actor layer output.
-    pub actor: Vec<f64>,
+    /// Per estimator layer, per output channel.
+    pub estimator: Vec<Vec<f64>>,
+    /// Per memory layer, per output channel.
+    pub memory: Vec<Vec<f64>>,
+    /// Per actor layer, per output channel.
+    pub actor: Vec<Vec<f64>>,
 }
 
 /// Runs the f32 policy on `records` and records magnitudes.
@@ -138,18 +138,33 @@ pub fn calibrate(policy: &PolicyF32, records: &[ObsRecord]) -> Result<Calibratio
     let mut cal = Calibration {
         history_absmax: vec![0.0; HISTORY_DIM],
         actor_obs_absmax: vec![0.0; ACTOR_OBS_DIM],
-        estimator: vec![0.0; policy.estimator.layers.len()],
-        memory: vec![0.0; policy.memory.layers.len()],
-        actor: vec![0.0; policy.actor.layers.len()],
+        estimator: policy
+            .estimator
+            .layers
+            .iter()
+            .map(|l| vec![0.0; l.out_dim])
+            .collect(),
+        memory: policy
+            .memory
+            .layers
+            .iter()
+            .map(|l| vec![0.0; l.out_dim])
+            .collect(),
+        actor: policy
+            .actor
+            .layers
+            .iter()
+            .map(|l| vec![0.0; l.out_dim])
+            .collect(),
     };
     let absmax = |acc: &mut [f64], x: &[f32]| {
         for (a, &v) in acc.iter_mut().zip(x) {
             *a = a.max(v.abs() as f64);
         }
     };
-    let layer_max = |acc: &mut [f64], outs: &[Vec<f32>]| {
+    let layer_max = |acc: &mut [Vec<f64>], outs: &[Vec<f32>]| {
         for (a, o) in acc.iter_mut().zip(outs) {
-            *a = o.iter().fold(*a, |m, &v| m.max(v.abs() as f64));
+            absmax(a, o);
         }
     };
     for r in records {
@@ -184,13 +199,14 @@ struct Column {
     scale: f64,
 }
 
-/// Quantizes one layer: `columns` describe the (padded) input, `out_frac_bits` the output.
+/// Quantizes one layer: `columns` describe the (padded) input, `out_frac_bits` the output
+/// format of each channel.
 fn quantize_layer(
     net: &'static str,
     index: usize,
     layer: &DenseF32,
     columns: &[Column],
-    out_frac_bits: u8,
+    out_frac_bits: &[u8],
     activation: Activation,
 ) -> Result<OwnedLayer, QuantError> {
     let in_dim = columns.len();
@@ -229,7 +245,7 @@ fn quantize_layer(
             + bias_q.unsigned_abs() as u128;
         let bound_bits = 128 - bound.leading_zeros() as i32;
         let m_bits = (62 - bound_bits).min(31);
-        let real = w_scale * pow2(out_frac_bits as i32);
+        let real = w_scale * pow2(out_frac_bits[r] as i32);
         let exponent = real.log2().floor() as i32;
         let sh = (m_bits - 1 - exponent).min(62);
         let m = (real * pow2(sh)).round();
@@ -250,6 +266,8 @@ fn quantize_layer(
         multiplier[r] = m as i32;
         shift[r] = sh as u8;
     }
+    let mut frac = out_frac_bits.to_vec();
+    frac.resize(rows, 0);
     Ok(OwnedLayer {
         in_dim,
         out_dim: layer.out_dim,
@@ -257,7 +275,7 @@ fn quantize_layer(
         bias,
         multiplier,
         shift,
-        out_frac_bits,
+        out_frac_bits: frac,
         activation,
     })
 }
@@ -267,7 +285,7 @@ fn quantize_mlp(
     net: &'static str,
     mlp: &MlpF32,
     first: Vec<Column>,
-    cal: &[f64],
+    cal: &[Vec<f64>],
 ) -> Result<Vec<OwnedLayer>, QuantError> {
     let n = mlp.layers.len();
     let mut out: Vec<OwnedLayer> = Vec::with_capacity(n);
@@ -279,15 +297,19 @@ fn quantize_mlp(
         } else {
             (mlp.hidden, ELU_MAX_FRAC_BITS, 1.0)
         };
-        let f = frac_bits_for((cal[k] * HEADROOM).max(floor), max_bits);
-        out.push(quantize_layer(net, k, layer, &columns, f, activation)?);
-        let scale = pow2(f as i32);
-        columns = (0..layer.out_dim)
-            .map(|i| Column {
+        let f: Vec<u8> = cal[k]
+            .iter()
+            .map(|&m| frac_bits_for((m * HEADROOM).max(floor), max_bits))
+            .collect();
+        out.push(quantize_layer(net, k, layer, &columns, &f, activation)?);
+        columns = f
+            .iter()
+            .enumerate()
+            .map(|(i, &f)| Column {
                 source: Some(i),
                 mean: 0.0,
                 std: 1.0,
-                scale,
+                scale: pow2(f as i32),
             })
             .collect();
     }
@@ -355,14 +377,18 @@ pub fn quantize_policy(policy: &PolicyF32, cal: &Calibration) -> Result<OwnedPol
             scale: actor_obs_scale[i],
         };
     }
-    let segment_scale =
-        |layers: &[OwnedLayer]| layers.last().map_or(1.0, |l| pow2(l.out_frac_bits as i32));
+    let segment_scale = |layers: &[OwnedLayer], i: usize| {
+        layers
+            .last()
+            .and_then(|l| l.out_frac_bits.get(i))
+            .map_or(1.0, |&f| pow2(f as i32))
+    };
     for i in 0..est_dim {
         columns[2 * est_w + i] = Column {
             source: Some(ACTOR_OBS_DIM + i),
             mean: 0.0,
             std: 1.0,
-            scale: segment_scale(&estimator),
+            scale: segment_scale(&estimator, i),
         };
     }
     for i in 0..lat_dim {
@@ -370,7 +396,7 @@ pub fn quantize_policy(policy: &PolicyF32, cal: &Calibration) -> Result<OwnedPol
             source: Some(ACTOR_OBS_DIM + est_dim + i),
             mean: 0.0,
             std: 1.0,
-            scale: segment_scale(&memory),
+            scale: segment_scale(&memory, i),
         };
     }
     let actor = quantize_mlp("actor", &policy.actor, columns, &cal.actor)?;

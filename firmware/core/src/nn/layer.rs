@@ -20,7 +20,8 @@ pub enum Activation {
 ///
 /// Output channel `c` is `q_c = round((acc_c + bias[c]) * multiplier[c] / 2^shift[c])`,
 /// where `acc_c` is the exact sum of `w_q[c][i] * x_q[i]`; `q_c` is in
-/// Q`out_frac_bits` (real value `q_c / 2^out_frac_bits`). ELU is applied before saturation
+/// Q`out_frac_bits[c]` (real value `q_c / 2^out_frac_bits[c]`): every channel has its own
+/// power-of-two format, which the next layer folds into its weight columns. ELU is applied before saturation
 /// to `i16`, so very negative inputs still give -1.
 #[derive(Clone, Copy, Debug)]
 pub struct QuantizedLayer<'a> {
@@ -36,8 +37,8 @@ pub struct QuantizedLayer<'a> {
     pub multiplier: &'a [i32],
     /// Requantization right shift per channel, `1..=62`.
     pub shift: &'a [u8],
-    /// Fractional bits of the output.
-    pub out_frac_bits: u8,
+    /// Fractional bits of each output channel (`2 * words(out_dim)` entries).
+    pub out_frac_bits: &'a [u8],
     /// Nonlinearity.
     pub activation: Activation,
 }
@@ -50,15 +51,17 @@ impl QuantizedLayer<'_> {
             && self.bias.len() == rows
             && self.multiplier.len() == rows
             && self.shift.len() == rows
+            && self.out_frac_bits.len() == rows
             && self.in_dim > 0
             && self.out_dim > 0;
         if !shape_ok {
             return Err(NnError::LayerShape { layer: index });
         }
-        let frac_ok = match self.activation {
-            Activation::Elu => self.out_frac_bits <= ELU_MAX_FRAC_BITS,
-            Activation::Linear | Activation::Relu => self.out_frac_bits <= 15,
+        let max_frac = match self.activation {
+            Activation::Elu => ELU_MAX_FRAC_BITS,
+            Activation::Linear | Activation::Relu => 15,
         };
+        let frac_ok = self.out_frac_bits.iter().all(|&f| f <= max_frac);
         if !frac_ok || self.shift.iter().any(|&s| !(1..=62).contains(&s)) {
             return Err(NnError::Requant { layer: index });
         }
@@ -98,19 +101,20 @@ impl QuantizedLayer<'_> {
             .zip(self.bias.chunks_exact(2))
             .zip(self.multiplier.chunks_exact(2))
             .zip(self.shift.chunks_exact(2))
+            .zip(self.out_frac_bits.chunks_exact(2))
             .zip(output.iter_mut().take(words(self.out_dim)));
-        for ((((w, b), m), s), out) in rows {
+        for (((((w, b), m), s), f), out) in rows {
             let (acc0, acc1) = kernel(w, x, (b[0], b[1]));
-            let y0 = self.finish(requantize(acc0, m[0], s[0]));
-            let y1 = self.finish(requantize(acc1, m[1], s[1]));
+            let y0 = self.finish(requantize(acc0, m[0], s[0]), f[0]);
+            let y1 = self.finish(requantize(acc1, m[1], s[1]), f[1]);
             *out = pack(y0, y1);
         }
     }
 
     #[inline(always)]
-    fn finish(&self, y: i64) -> i16 {
+    fn finish(&self, y: i64, frac_bits: u8) -> i16 {
         match self.activation {
-            Activation::Elu if y < 0 => elu_negative(y, self.out_frac_bits),
+            Activation::Elu if y < 0 => elu_negative(y, frac_bits),
             Activation::Relu if y < 0 => 0,
             _ => saturate_i16(y),
         }

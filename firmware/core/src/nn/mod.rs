@@ -16,6 +16,7 @@
 //! rows `2p, 2p + 1` and input pair `k`, word `2k` holds row `2p`'s pair and word `2k + 1`
 //! row `2p + 1`'s, so one input word feeds two dual multiply-accumulates.
 
+pub mod bench;
 pub mod elu;
 pub mod kernel;
 pub mod layer;

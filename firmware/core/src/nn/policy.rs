@@ -31,9 +31,13 @@ impl Mlp<'_> {
         self.layers.last().map_or(0, |l| l.out_dim)
     }
 
-    /// Fractional bits of the output.
-    pub fn out_frac_bits(&self) -> u8 {
-        self.layers.last().map_or(0, |l| l.out_frac_bits)
+    /// Fractional bits of output channel `i`.
+    pub fn out_frac_bits(&self, i: usize) -> u8 {
+        self.layers
+            .last()
+            .and_then(|l| l.out_frac_bits.get(i))
+            .copied()
+            .unwrap_or(0)
     }
 
     /// Multiply-accumulates of one evaluation.
@@ -214,7 +218,6 @@ impl QuantizedPolicy<'_> {
         }
         let out = self.actor.run(actor_in, a, b, kernel);
 
-        let lsb = pow2(-(self.actor.out_frac_bits() as i32));
         let mut result = PolicyOutput {
             action_q: [0; NUM_JOINTS],
             action: [0.0; NUM_JOINTS],
@@ -222,6 +225,7 @@ impl QuantizedPolicy<'_> {
         };
         for j in 0..NUM_JOINTS {
             let q = unpack(out, j);
+            let lsb = pow2(-(self.actor.out_frac_bits(j) as i32));
             let action = (q as f32 * lsb).clamp(-ACTION_CLIP, ACTION_CLIP);
             result.action_q[j] = q;
             result.action[j] = action;
@@ -241,8 +245,9 @@ pub struct Scratch<const W: usize> {
     b: [u32; W],
 }
 
-impl<const W: usize> Default for Scratch<W> {
-    fn default() -> Self {
+impl<const W: usize> Scratch<W> {
+    /// Zeroed buffers (`const`, so a scratch can be a `static`).
+    pub const fn new() -> Self {
         Self {
             hist: [0; W],
             actor_in: [0; W],
@@ -252,10 +257,17 @@ impl<const W: usize> Default for Scratch<W> {
     }
 }
 
+impl<const W: usize> Default for Scratch<W> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 /// What a policy step produces.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PolicyOutput {
-    /// The network's raw output (Q`actor.out_frac_bits`), for bit-exact comparisons.
+    /// The network's raw output (channel `j` in Q`out_frac_bits[j]` of the actor's last
+    /// layer), for bit-exact comparisons.
     pub action_q: [i16; NUM_JOINTS],
     /// The action, clipped to `+-ACTION_CLIP`.
     pub action: [f32; NUM_JOINTS],

@@ -84,6 +84,9 @@ impl<P: JointPlant> Harness<P> {
     /// One 1 ms tick: sensors, frames both ways, drives, physics.
     fn tick(&mut self, physics: &mut impl FnMut(&mut P, f32)) {
         let now = self.now_us;
+        for bus in &mut self.rig.buses {
+            bus.set_time(now);
+        }
         let b = self.base;
         self.imu.sample(
             now,
@@ -135,6 +138,7 @@ impl<P: JointPlant> Harness<P> {
                 self.last_command = Some(self.controller.finish_cycle(self.now_us, policy));
                 finished = true;
                 for bus in 0..2 {
+                    self.rig.buses[bus].set_time(self.now_us);
                     self.controller
                         .service_bus(bus, &mut self.rig.buses[bus], self.now_us);
                 }

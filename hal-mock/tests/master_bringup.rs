@@ -7,8 +7,11 @@ use hal_mock::plant::JointModel;
 use hal_mock::rig::DriveRig;
 use hexapod_core::canopen::cia402::{DriveRequest, PowerState};
 use hexapod_core::canopen::master::{Master, NodeFault, NodePhase};
+use hexapod_core::canopen::units::rad_to_increments;
 use hexapod_core::hal::CanBus;
-use hexapod_core::robot::{NUM_JOINTS, Q0_RAD, Q_SIT_RAD};
+use hexapod_core::robot::{
+    NUM_JOINTS, Q0_RAD, Q_MAX_RAD, Q_MIN_RAD, Q_SIT_RAD, TORQUE_LIMIT_NM, VELOCITY_LIMIT_RAD_S,
+};
 use hexapod_core::timing::PHYSICS_DT_S;
 
 const STEP_US: u64 = 1_000;
@@ -91,6 +94,13 @@ fn configures_and_enables_all_drives_through_frames() {
         assert_eq!(d.objects.mode, 8);
         assert_eq!(d.objects.rpdo_map[0].active(), &[0x6040_0010, 0x607A_0020]);
         assert_eq!(d.objects.producer_heartbeat_ms, 100);
+        assert_eq!(
+            d.objects.position_limits,
+            [
+                rad_to_increments(Q_MIN_RAD[j]),
+                rad_to_increments(Q_MAX_RAD[j])
+            ]
+        );
     }
     // Configuration ran over SDO: 42 transfers x 2 frames x 18 drives at least.
     assert!(b.rig.buses.iter().map(|x| x.stats.frames).sum::<u64>() > 42 * 2 * 18);
@@ -102,8 +112,18 @@ fn configures_and_enables_all_drives_through_frames() {
     }
     assert!(b.master.all_enabled(), "not enabled after {cycles} cycles");
     assert!(cycles <= 5, "{cycles}");
-    for d in &b.rig.drives {
+    for (j, d) in b.rig.drives.iter().enumerate() {
         assert_eq!(d.power_state(), PowerState::OperationEnabled);
+        // The drive enforces the same limits the simulator's CSP law uses.
+        let sp = d.setpoint().unwrap();
+        assert!(
+            (sp.vel_limit_rad_s - VELOCITY_LIMIT_RAD_S[j]).abs() < 1e-4,
+            "{sp:?}"
+        );
+        assert!(
+            (sp.torque_limit_nm - TORQUE_LIMIT_NM[j]).abs() < 1e-3,
+            "{sp:?}"
+        );
     }
     // Enabling did not move the joints.
     for j in 0..NUM_JOINTS {
@@ -141,6 +161,27 @@ fn cyclic_exchange_tracks_targets_and_reports_feedback() {
             fb.q_rad[j]
         );
         assert!((fb.q_rad[j] - b.plant.states[j].q_rad).abs() < 1e-4);
+    }
+    // Torque feedback: block the joints and ask for 0.1 rad more; the CSP law answers
+    // 2 N m s/rad * 50 1/s * 0.1 rad = 10 N m, reported in per mille of the rated torque
+    // read over SDO and converted back to N m by the master.
+    b.plant.inertia_kg_m2 = 1e9;
+    let mut t = [0.0; NUM_JOINTS];
+    for j in 0..NUM_JOINTS {
+        t[j] = b.plant.states[j].q_rad + 0.1;
+    }
+    b.cycle(DriveRequest::Enable, &t);
+    b.cycle(DriveRequest::Enable, &t);
+    let fb = b.master.feedback();
+    for j in 0..NUM_JOINTS {
+        let quantum_nm = b.master.node(j).rated_torque_mnm as f32 * 1e-6;
+        let tau = b.plant.states[j].torque_nm;
+        assert!((tau - 10.0).abs() < 0.05, "{tau}");
+        assert!(
+            (fb.torque_nm[j] - tau).abs() <= quantum_nm,
+            "joint {j}: {} vs {tau}",
+            fb.torque_nm[j]
+        );
     }
     assert_eq!(b.master.first_fault(), None);
     // The log is candump text with both buses.

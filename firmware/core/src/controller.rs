@@ -207,7 +207,7 @@ impl Controller {
         self.master.feedback_complete()
             || self
                 .cycle_start_us
-                .is_none_or(|t| now_us >= t + self.config.feedback_deadline_us)
+                .is_none_or(|t| now_us >= t.saturating_add(self.config.feedback_deadline_us))
     }
 
     /// Finishes the cycle: supervisor, control step, RPDOs. Returns what was commanded.

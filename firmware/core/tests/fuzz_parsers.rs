@@ -15,7 +15,11 @@ use hexapod_core::rc::receiver::{RcConfig, RcReceiver};
 use proptest::prelude::*;
 
 fn frame_strategy() -> impl Strategy<Value = (usize, CanFrame)> {
-    (0usize..3, 0u16..=0x7FF, prop::collection::vec(any::<u8>(), 0..=8))
+    (
+        0usize..3,
+        0u16..=0x7FF,
+        prop::collection::vec(any::<u8>(), 0..=8),
+    )
         .prop_map(|(bus, id, data)| (bus, CanFrame::data_frame(id, &data).unwrap()))
 }
 
@@ -146,9 +150,16 @@ fn unknown_nodes_and_wrong_buses_are_counted() {
     // nobody asked for, and a short EMCY.
     m.on_frame(0, &CanFrame::data_frame(0x1A8, &[0; 6]).unwrap(), 0);
     m.on_frame(1, &CanFrame::data_frame(0x183, &[0; 6]).unwrap(), 0);
-    m.on_frame(0, &CanFrame::data_frame(0x583, &[0x60, 0, 0, 0, 0, 0, 0, 0]).unwrap(), 0);
+    m.on_frame(
+        0,
+        &CanFrame::data_frame(0x583, &[0x60, 0, 0, 0, 0, 0, 0, 0]).unwrap(),
+        0,
+    );
     m.on_frame(0, &CanFrame::data_frame(0x083, &[1, 2]).unwrap(), 0);
     let c = m.counters;
-    assert_eq!((c.unknown_node, c.wrong_bus, c.unexpected_sdo, c.malformed), (1, 1, 1, 1));
+    assert_eq!(
+        (c.unknown_node, c.wrong_bus, c.unexpected_sdo, c.malformed),
+        (1, 1, 1, 1)
+    );
     assert_eq!(m.first_fault(), None, "bad frames do not fault a drive");
 }

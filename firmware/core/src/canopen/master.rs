@@ -574,7 +574,7 @@ impl Master {
             return;
         }
         if now_us >= self.next_heartbeat_us {
-            self.next_heartbeat_us = now_us + MASTER_HEARTBEAT_PERIOD_US;
+            self.next_heartbeat_us = now_us.saturating_add(MASTER_HEARTBEAT_PERIOD_US);
             for bus in 0..NUM_BUSES {
                 self.push(bus, NmtState::Operational.heartbeat_frame(MASTER_NODE_ID));
             }

@@ -142,7 +142,11 @@ impl SdoRequest {
     /// A download of a `u32`/`i32` (4 bytes), `u16`/`i16` (2) or `u8`/`i8` (1) value.
     pub fn download(address: ObjectAddress, value: u32, len: u8) -> Self {
         let len = len.clamp(1, 4);
-        Self::Download { address, data: mask(value.to_le_bytes(), len), len }
+        Self::Download {
+            address,
+            data: mask(value.to_le_bytes(), len),
+            len,
+        }
     }
 
     /// The request frame to `node_id`'s SDO server.

@@ -59,7 +59,7 @@ impl SdoClient {
         }
         self.pending = Some(Pending {
             request,
-            deadline_us: now_us + SDO_TIMEOUT_US,
+            deadline_us: now_us.saturating_add(SDO_TIMEOUT_US),
         });
         Some(request.frame(node_id))
     }

@@ -691,3 +691,7 @@ impl Master {
         }
     }
 }
+
+#[cfg(test)]
+#[path = "master_tests.rs"]
+mod tests;

@@ -1,0 +1,188 @@
+//! Unit tests of the master against hand-written drive answers.
+
+use super::*;
+use crate::canopen::sdo::{abort, SdoResponse};
+
+fn boot_up(node: u8) -> CanFrame {
+    NmtState::BootUp.heartbeat_frame(node)
+}
+
+/// The SDO request the master queued for `node` on its bus, if any.
+fn pending_request(m: &mut Master, node: u8) -> Option<SdoRequest> {
+    let bus = can_bus(node as usize - 1);
+    let mut found = None;
+    while let Some(f) = m.pop_tx(bus) {
+        if f.cob_id() == 0x600 + node as u16 {
+            found = SdoRequest::parse(f.payload()).ok();
+        }
+    }
+    found
+}
+
+#[test]
+fn start_resets_both_buses_and_waits_for_boot_up() {
+    let mut m = Master::new();
+    m.start(0);
+    for bus in 0..NUM_BUSES {
+        assert_eq!(m.pop_tx(bus), Some(NmtCommand::ResetCommunication.frame(0)));
+    }
+    assert!(m.configuring());
+    m.on_frame(0, &boot_up(1), 10);
+    assert_eq!(
+        m.node(0).phase,
+        NodePhase::Configuring {
+            step: 0,
+            retries: 0
+        }
+    );
+    assert_eq!(
+        pending_request(&mut m, 1),
+        Some(SdoRequest::Upload {
+            address: od::DEVICE_TYPE
+        })
+    );
+}
+
+#[test]
+fn silent_nodes_are_reset_again_then_given_up() {
+    let mut m = Master::new();
+    m.start(0);
+    let mut t = 0;
+    for _ in 0..BOOT_ATTEMPTS {
+        t += BOOT_TIMEOUT_US;
+        m.poll(t);
+    }
+    assert_eq!(m.node(5).fault, Some(NodeFault::NoBootUp));
+    assert_eq!(m.node(5).phase, NodePhase::Failed);
+    assert!(!m.configuring());
+}
+
+#[test]
+fn an_sdo_abort_fails_the_node() {
+    let mut m = Master::new();
+    m.start(0);
+    m.on_frame(0, &boot_up(2), 0);
+    let Some(SdoRequest::Upload { address }) = pending_request(&mut m, 2) else {
+        panic!()
+    };
+    let abort = SdoResponse::Abort {
+        address,
+        code: abort::NO_OBJECT,
+    };
+    m.on_frame(0, &abort.frame(2), 100);
+    assert_eq!(
+        m.node(1).fault,
+        Some(NodeFault::ConfigAborted {
+            address,
+            code: abort::NO_OBJECT
+        })
+    );
+}
+
+#[test]
+fn a_foreign_device_is_refused() {
+    let mut m = Master::new();
+    m.start(0);
+    m.on_frame(0, &boot_up(2), 0);
+    let r = SdoResponse::Upload {
+        address: od::DEVICE_TYPE,
+        data: 0x0001_0191u32.to_le_bytes(),
+        len: 4,
+    };
+    m.on_frame(0, &r.frame(2), 100);
+    assert_eq!(
+        m.node(1).fault,
+        Some(NodeFault::Identify(IdentifyError::NotAServoDrive(
+            0x0001_0191
+        )))
+    );
+}
+
+#[test]
+fn sdo_timeouts_are_retried_then_fail_the_node() {
+    let mut m = Master::new();
+    m.start(0);
+    m.on_frame(1, &boot_up(12), 0);
+    let mut t = 0;
+    let mut requests = 0;
+    for _ in 0..=SDO_RETRIES {
+        if pending_request(&mut m, 12).is_some() {
+            requests += 1;
+        }
+        t += super::super::sdo_client::SDO_TIMEOUT_US;
+        m.poll(t);
+    }
+    assert_eq!(requests, 1 + SDO_RETRIES as usize);
+    assert_eq!(
+        m.node(11).fault,
+        Some(NodeFault::ConfigTimeout {
+            address: od::DEVICE_TYPE
+        })
+    );
+}
+
+#[test]
+fn a_reboot_while_operational_is_a_fault() {
+    let mut m = Master::new();
+    m.start(0);
+    m.nodes[3].phase = NodePhase::Operational;
+    m.on_frame(0, &NmtState::Operational.heartbeat_frame(4), 10);
+    assert_eq!(m.node(3).fault, None);
+    m.on_frame(0, &boot_up(4), 20);
+    assert_eq!(m.node(3).fault, Some(NodeFault::UnexpectedNmtState));
+}
+
+#[test]
+fn missing_feedback_for_three_cycles_is_a_fault() {
+    let mut m = Master::new();
+    m.start(0);
+    m.nodes[0].phase = NodePhase::Operational;
+    for _ in 0..FEEDBACK_MISS_LIMIT {
+        assert_eq!(m.node(0).fault, None);
+        m.sync();
+    }
+    m.sync();
+    assert_eq!(m.node(0).fault, Some(NodeFault::FeedbackLost));
+}
+
+#[test]
+fn commands_follow_the_state_machine_and_never_jump() {
+    let mut m = Master::new();
+    m.start(0);
+    for bus in 0..NUM_BUSES {
+        while m.pop_tx(bus).is_some() {}
+    }
+    m.nodes[0].phase = NodePhase::Operational;
+    let tpdo = Tpdo1 {
+        statusword: 0x0250,
+        position: 10_000,
+    };
+    m.on_frame(0, &CanFrame::new_truncating(0x181, &tpdo.encode()), 0);
+    let targets = [1.0; NUM_JOINTS];
+    m.send_commands(&[DriveRequest::Enable; NUM_JOINTS], &targets);
+    let f = m.pop_tx(0).unwrap();
+    assert_eq!(f.cob_id(), 0x201);
+    let r = Rpdo1::decode(f.payload()).unwrap();
+    assert_eq!(r.controlword, 0x0006, "shutdown first");
+    assert_eq!(r.target_position, 10_000, "target = actual until enabled");
+    assert_eq!(m.pop_tx(0), None, "only operational drives get RPDOs");
+    let tpdo = Tpdo1 {
+        statusword: 0x1637,
+        position: 10_000,
+    };
+    m.on_frame(0, &CanFrame::new_truncating(0x181, &tpdo.encode()), 0);
+    m.send_commands(&[DriveRequest::Enable; NUM_JOINTS], &[f32::NAN; NUM_JOINTS]);
+    let r = Rpdo1::decode(m.pop_tx(0).unwrap().payload()).unwrap();
+    assert_eq!(
+        (r.controlword, r.target_position),
+        (0x000F, 10_000),
+        "NaN target holds"
+    );
+    m.send_commands(&[DriveRequest::Enable; NUM_JOINTS], &[9.0; NUM_JOINTS]);
+    let r = Rpdo1::decode(m.pop_tx(0).unwrap().payload()).unwrap();
+    assert_eq!(
+        r.target_position,
+        units::rad_to_increments(Q_MAX_RAD[0]),
+        "clamped to the limit"
+    );
+}

@@ -44,7 +44,31 @@ def main(path: str) -> int:
     for name, seen in [("NMT start", started), ("SDO", sdo_answered), ("TPDO1", tpdo1), ("TPDO2", tpdo2)]:
         assert seen == nodes, f"{name} missing for nodes {sorted(nodes - seen)}"
     print(f"{path}: {len(messages)} frames, {syncs['can0']} SYNC cycles, 18 drives: ok")
+    print_bus_load(messages)
     return 0
+
+
+def frame_bits(dlc: int, worst_case_stuffing: bool) -> int:
+    """Bits of a classic CAN 2.0A data frame including interframe space."""
+    bits = 47 + 8 * dlc
+    if worst_case_stuffing:
+        bits += (34 + 8 * dlc - 1) // 4
+    return bits
+
+
+def print_bus_load(messages, bitrate: float = 1e6) -> None:
+    """Bus load at 1 Mbit/s over the last 25 SYNC cycles (steady cyclic exchange)."""
+    sync_times = [m.timestamp for m in messages if m.arbitration_id == 0x080 and m.channel == "can0"]
+    start = sync_times[max(len(sync_times) - 26, 0)]
+    end = sync_times[-1]
+    cyclic = [m for m in messages if start <= m.timestamp < end]
+    duration = max(end - start, 1e-3)
+    for channel in ("can0", "can1"):
+        frames = [m for m in cyclic if m.channel == channel]
+        nominal = sum(frame_bits(len(m.data), False) for m in frames) / duration / bitrate
+        worst = sum(frame_bits(len(m.data), True) for m in frames) / duration / bitrate
+        print(f"  {channel}: {len(frames) / duration:.0f} frames/s, bus load {100 * nominal:.1f} % "
+              f"({100 * worst:.1f} % with worst-case bit stuffing)")
 
 
 if __name__ == "__main__":

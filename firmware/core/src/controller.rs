@@ -287,3 +287,31 @@ impl Policy for ZeroPolicy {
         Some([0.0; NUM_JOINTS])
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fits_in_a_few_kilobytes_of_static_ram() {
+        let bytes = core::mem::size_of::<Controller>();
+        println!("Controller: {bytes} bytes");
+        assert!(bytes < 8 * 1024, "Controller is {bytes} bytes");
+    }
+
+    #[test]
+    fn a_late_cycle_is_an_overrun() {
+        let mut c = Controller::new(ControllerConfig::default());
+        c.start(0);
+        c.begin_cycle(0);
+        c.finish_cycle(16_000, &mut ZeroPolicy);
+        assert_eq!(c.stats.overruns, 1);
+        c.begin_cycle(20_000);
+        c.finish_cycle(22_000, &mut ZeroPolicy);
+        assert_eq!(c.stats.overruns, 1);
+        // The next SYNC comes 35 ms later instead of 20 ms.
+        c.begin_cycle(55_000);
+        c.finish_cycle(57_000, &mut ZeroPolicy);
+        assert_eq!(c.stats.overruns, 2);
+    }
+}

@@ -7,6 +7,7 @@ pub const GRAVITY_M_S2: f32 = 9.806_65;
 
 /// Filter gains.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct AttitudeConfig {
     /// Proportional gain of the accelerometer correction, rad/s.
     pub kp: f32,
@@ -29,6 +30,7 @@ impl Default for AttitudeConfig {
 
 /// The filter state: orientation of the base in the world (unit quaternion w, x, y, z).
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct AttitudeFilter {
     config: AttitudeConfig,
     q: [f32; 4],

@@ -11,6 +11,7 @@ pub const MAX_STANDARD_ID: u16 = 0x7FF;
 
 /// A standard-id CAN frame with at most 8 data bytes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CanFrame {
     id: u16,
     len: u8,

@@ -65,6 +65,7 @@ impl<const W: usize> Policy for NnPolicy<'_, W> {
 
 /// What the sensors say this cycle.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Sensors {
     /// Base angular velocity (gyro), base frame, rad/s.
     pub ang_vel_base_rad_s: [f32; 3],
@@ -78,6 +79,7 @@ pub struct Sensors {
 
 /// Why a control step produced no targets.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ControlError {
     /// A sensor value is NaN or infinite.
     NonFiniteObservation,

@@ -23,6 +23,7 @@ use crate::timing::POLICY_DT_S;
 
 /// Controller parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ControllerConfig {
     /// Supervisor timing and limits.
     pub supervisor: SupervisorConfig,
@@ -53,6 +54,7 @@ impl Default for ControllerConfig {
 
 /// Counters of the control loop.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LoopStats {
     /// Cycles run.
     pub cycles: u32,
@@ -275,6 +277,7 @@ impl Controller {
 
 /// A policy that always returns the zero action (stand still at the nominal pose).
 #[derive(Clone, Copy, Debug, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ZeroPolicy;
 
 impl Policy for ZeroPolicy {

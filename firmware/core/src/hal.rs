@@ -8,6 +8,7 @@ use crate::can_frame::CanFrame;
 
 /// Why a CAN transmission was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum CanTxError {
     /// The transmit queue is full; the frame was not sent.
     QueueFull,
@@ -27,6 +28,7 @@ pub trait CanBus {
 
 /// One IMU sample in the IMU's (= the base's) frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ImuSample {
     /// Angular velocity, rad/s.
     pub gyro_rad_s: [f32; 3],

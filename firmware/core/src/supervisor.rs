@@ -34,6 +34,7 @@ use crate::robot::{can_bus, NUM_JOINTS, Q0_RAD, Q_SIT_RAD};
 
 /// Timing and limits of the supervisor.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SupervisorConfig {
     /// Stand-up duration, s.
     pub stand_up_s: f32,
@@ -64,6 +65,7 @@ impl Default for SupervisorConfig {
 
 /// A fault the supervisor reacts to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Fault {
     /// A drive failed (EMCY, fault state, lost heartbeat or feedback, configuration).
     Drive {
@@ -93,6 +95,7 @@ pub enum Fault {
 
 /// What the supervisor does about a fault while the robot is up.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Reaction {
     /// Lower slowly to the sitting pose with the remaining drives, then torque off.
     SitDown,
@@ -128,6 +131,7 @@ impl Fault {
 
 /// Operating mode.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Mode {
     /// Before the drives are started.
     Boot,
@@ -173,6 +177,7 @@ pub enum Mode {
 
 /// What the supervisor needs to know each cycle.
 #[derive(Clone, Copy, Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Inputs<'a> {
     /// Now, microseconds.
     pub now_us: u64,
@@ -196,6 +201,7 @@ pub struct Inputs<'a> {
 
 /// What to send to the drives this cycle.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Command {
     /// Per-drive request.
     pub requests: [DriveRequest; NUM_JOINTS],
@@ -207,6 +213,7 @@ pub struct Command {
 
 /// The supervisor state.
 #[derive(Clone, Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Supervisor {
     config: SupervisorConfig,
     mode: Mode,

@@ -37,6 +37,7 @@ pub const SW_CSP_FOLLOWING: u16 = 1 << 12;
 
 /// A state of the power drive state machine.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum PowerState {
     /// Initialising.
     NotReadyToSwitchOn,
@@ -98,6 +99,7 @@ impl PowerState {
 
 /// What the master wants a drive to do.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DriveRequest {
     /// Reach and stay in Operation enabled (torque on, following targets).
     Enable,

@@ -19,6 +19,7 @@ pub const HEARTBEAT_BASE: u16 = 0x700;
 
 /// What a received COB-ID is, with the node id it carries.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Cob {
     /// NMT command.
     Nmt,

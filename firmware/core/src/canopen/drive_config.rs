@@ -27,6 +27,7 @@ pub const SYNC_PERIOD_US: u32 = 1_000_000 / POLICY_RATE_HZ;
 
 /// One step of the script.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ConfigStep {
     /// Read and check an object.
     Read(ObjectAddress),
@@ -36,6 +37,7 @@ pub enum ConfigStep {
 
 /// Why a drive was refused during identification.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum IdentifyError {
     /// Device type is not a CiA 402 servo drive.
     NotAServoDrive(u32),

@@ -18,6 +18,7 @@ pub const FOLLOWING_ERROR: u16 = 0x8611;
 
 /// An emergency message.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Emcy {
     /// CiA 301/402 error code.
     pub error_code: u16,

@@ -51,6 +51,7 @@ pub const FEEDBACK_MISS_LIMIT: u8 = 3;
 
 /// Why a node is out of service (latched).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum NodeFault {
     /// No boot-up message after [`BOOT_ATTEMPTS`] resets.
     NoBootUp,
@@ -94,6 +95,7 @@ impl NodeFault {
 
 /// Configuration progress of a node.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum NodePhase {
     /// Not started.
     Idle,
@@ -119,6 +121,7 @@ pub enum NodePhase {
 
 /// What the master knows about one drive.
 #[derive(Clone, Copy, Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct NodeState {
     /// Configuration progress.
     pub phase: NodePhase,
@@ -181,6 +184,7 @@ impl NodeState {
 
 /// Frames dropped, by reason (saturating counters).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct MasterCounters {
     /// Payload of the wrong length or with an invalid value.
     pub malformed: u32,
@@ -204,6 +208,7 @@ fn bump(counter: &mut u32) {
 
 /// Joint feedback in joint order.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct JointFeedback {
     /// Positions, rad.
     pub q_rad: [f32; NUM_JOINTS],

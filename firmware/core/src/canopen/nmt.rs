@@ -5,6 +5,7 @@ use crate::can_frame::CanFrame;
 
 /// An NMT command specifier.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum NmtCommand {
     /// Enter operational (PDOs run).
     Start = 0x01,
@@ -47,6 +48,7 @@ impl NmtCommand {
 
 /// A node's NMT state as its heartbeat reports it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum NmtState {
     /// Boot-up message (sent once after initialisation).
     BootUp = 0x00,

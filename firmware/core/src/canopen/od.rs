@@ -2,6 +2,7 @@
 
 /// An object dictionary entry: index and subindex.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ObjectAddress {
     /// 16-bit index.
     pub index: u16,

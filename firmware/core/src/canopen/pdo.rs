@@ -24,6 +24,7 @@ pub const TPDO2_MAPPING: [u32; 2] = [
 
 /// RPDO1: the command to a drive.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Rpdo1 {
     /// Controlword.
     pub controlword: u16,
@@ -33,6 +34,7 @@ pub struct Rpdo1 {
 
 /// TPDO1: state and position of a drive.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Tpdo1 {
     /// Statusword.
     pub statusword: u16,
@@ -42,6 +44,7 @@ pub struct Tpdo1 {
 
 /// TPDO2: velocity and torque of a drive.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Tpdo2 {
     /// Velocity actual value, increments/s.
     pub velocity: i32,

@@ -40,6 +40,7 @@ pub mod abort {
 
 /// A client -> server SDO request (COB-ID 0x600 + node).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum SdoRequest {
     /// Expedited download (write) of 1..=4 bytes, little-endian in `data`.
     Download {
@@ -66,6 +67,7 @@ pub enum SdoRequest {
 
 /// A server -> client SDO response (COB-ID 0x580 + node).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum SdoResponse {
     /// Download confirmed.
     DownloadAck {
@@ -92,6 +94,7 @@ pub enum SdoResponse {
 
 /// Why an SDO frame could not be decoded.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum SdoParseError {
     /// Not 8 bytes (CiA 301 SDO frames always carry 8).
     BadLength,

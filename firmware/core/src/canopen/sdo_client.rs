@@ -9,6 +9,7 @@ pub const SDO_TIMEOUT_US: u64 = 50_000;
 
 /// How a transfer ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum SdoOutcome {
     /// The server confirmed a download.
     Written(ObjectAddress),
@@ -22,6 +23,7 @@ pub enum SdoOutcome {
 
 /// A response the client could not use.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum SdoClientError {
     /// The frame is not a valid SDO response.
     Malformed(SdoParseError),
@@ -30,6 +32,7 @@ pub enum SdoClientError {
 }
 
 #[derive(Clone, Copy, Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 struct Pending {
     request: SdoRequest,
     deadline_us: u64,
@@ -37,6 +40,7 @@ struct Pending {
 
 /// The client side of one node's SDO channel.
 #[derive(Clone, Copy, Debug, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SdoClient {
     pending: Option<Pending>,
 }

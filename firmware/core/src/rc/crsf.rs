@@ -43,6 +43,7 @@ pub fn crc8_dvb_s2(bytes: &[u8]) -> u8 {
 
 /// Link statistics as the receiver reports them.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LinkStatistics {
     /// Uplink RSSI of antenna 1, -dBm.
     pub uplink_rssi_1: u8,
@@ -68,6 +69,7 @@ pub struct LinkStatistics {
 
 /// A decoded frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum CrsfFrame {
     /// 16 channel values (172..=1811 nominal, 11 bits).
     RcChannels([u16; NUM_CHANNELS]),
@@ -79,6 +81,7 @@ pub enum CrsfFrame {
 
 /// Counters of rejected input.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CrsfCounters {
     /// Frames whose CRC did not match.
     pub crc_errors: u32,
@@ -92,6 +95,7 @@ pub struct CrsfCounters {
 
 /// Streaming CRSF parser with a fixed buffer.
 #[derive(Clone, Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CrsfParser {
     buf: [u8; MAX_FRAME_LEN],
     len: usize,

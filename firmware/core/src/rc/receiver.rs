@@ -13,6 +13,7 @@ use super::crsf::{CrsfFrame, CrsfParser, CHANNEL_MAX, CHANNEL_MID, CHANNEL_MIN, 
 
 /// Mapping and failsafe parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RcConfig {
     /// Forward speed at full stick, m/s.
     pub vx_max_m_s: f32,
@@ -43,6 +44,7 @@ impl Default for RcConfig {
 
 /// What the operator asks for now.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RcState {
     /// Velocity command (vx m/s, vy m/s, wz rad/s), base frame; zero in failsafe.
     pub command: [f32; 3],
@@ -63,6 +65,7 @@ impl RcState {
 
 /// The receiver: parser, last channels, failsafe.
 #[derive(Clone, Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RcReceiver {
     /// The CRSF parser (with its error counters).
     pub parser: CrsfParser,

@@ -5,12 +5,17 @@
 //! the seam to the learner.
 #![warn(missing_docs)]
 
+pub mod bench;
 pub mod config;
+pub mod demo;
 pub mod env;
 pub mod frames;
 pub mod gait;
+pub mod peer;
+pub mod plot;
 pub mod rewards;
 pub mod robot;
 pub mod terrain;
+pub mod trajectory;
 pub mod urdf_model;
 pub mod vec_env;

@@ -52,7 +52,8 @@ pub struct RobotState {
 /// Contacts and collisions after a physics step.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct ContactState {
-    /// Ground reaction force on each foot, world, N (normal part).
+    /// Ground reaction force on each foot, world, N: the normal (non-friction) part, so on
+    /// sloped ground its vertical component is below the foot's share of the weight.
     pub foot_force_world_n: [[f32; 3]; NUM_LEGS],
     /// Trunk touches the ground.
     pub trunk: bool,
@@ -356,6 +357,15 @@ impl RobotWorld {
         }
         c.trunk = np.intersection_pair(self.trunk, self.ground).unwrap_or(false);
         c
+    }
+
+    /// Number of solver contact points (feet on the ground) in the last step.
+    pub fn num_contact_points(&self) -> usize {
+        self.feet
+            .iter()
+            .filter_map(|f| self.world.narrow_phase.contact_pair(*f, self.ground))
+            .map(|p| p.solver_manifolds().iter().map(|m| m.data.solver_contacts.len()).sum::<usize>())
+            .sum()
     }
 
     /// Total mass of the robot, kg.

@@ -162,6 +162,22 @@ impl Terrain {
         } else {
             Vec::new()
         };
+        // Rough-slope noise on a coarse 0.2 m lattice, interpolated (legged_gym's downsampling).
+        const NOISE_CELL_M: f32 = 0.2;
+        let noise_n = (c.tile_size_m / NOISE_CELL_M).ceil() as usize + 2;
+        let noise: Vec<f32> = if kind == TileKind::RoughSlope {
+            (0..noise_n * noise_n).map(|_| rng.gen_range(-1.0..1.0) * c.rough_noise_m).collect()
+        } else {
+            Vec::new()
+        };
+        let noise_at = |x: f32, y: f32| -> f32 {
+            let fx = ((x - (cx - half)) / NOISE_CELL_M).clamp(0.0, (noise_n - 2) as f32);
+            let fy = ((y - (cy - half)) / NOISE_CELL_M).clamp(0.0, (noise_n - 2) as f32);
+            let (i, j) = (fx as usize, fy as usize);
+            let (tx, ty) = (fx - i as f32, fy - j as f32);
+            let n = |a: usize, b: usize| noise[a * noise_n + b];
+            (n(i, j) * (1.0 - ty) + n(i, j + 1) * ty) * (1.0 - tx) + (n(i + 1, j) * (1.0 - ty) + n(i + 1, j + 1) * ty) * tx
+        };
         let (ix0, ix1) = self.index_range(cx - half, cx + half, true);
         let (iy0, iy1) = self.index_range(cy - half, cy + half, false);
         for ix in ix0..ix1 {
@@ -174,9 +190,7 @@ impl Terrain {
                 let h = match kind {
                     TileKind::Flat => 0.0,
                     TileKind::SmoothSlope => -slope * d,
-                    TileKind::RoughSlope => {
-                        slope * d + rng.gen_range(-1.0..1.0) * c.rough_noise_m * (0.5 + difficulty)
-                    }
+                    TileKind::RoughSlope => slope * d + noise_at(x, y) * (0.5 + difficulty),
                     TileKind::StairsUp => step_h * (d / c.step_depth_m).ceil(),
                     TileKind::StairsDown => -step_h * (d / c.step_depth_m).ceil(),
                     TileKind::DiscreteObstacles => obstacles

@@ -1,0 +1,116 @@
+#!/usr/bin/env python3
+"""MuJoCo peer for host-sim: the same URDF, dt, drive law and scripted gait.
+
+Reads a JSON job written by `hexapod-sim bench` or host-sim's fidelity test (nominal pose,
+one period of gait joint targets at the physics rate, drive gains and limits, an optional
+heightfield) and prints one JSON object: physics steps/s on flat ground and on the
+heightfield, mean contact counts, and the fidelity figures (standing base height and joint
+torques with noslip on; base displacement under the scripted gait).
+"""
+import json
+import sys
+import time
+
+import mujoco
+import numpy as np
+
+
+def build(job, with_hfield):
+    spec = mujoco.MjSpec.from_file(job["urdf"])
+    spec.option.timestep = job["dt_s"]
+    spec.option.gravity = [0.0, 0.0, -9.81]
+    root = spec.worldbody.first_body()
+    root.add_freejoint()
+    for j in spec.joints:
+        if j.type == mujoco.mjtJoint.mjJNT_HINGE:
+            j.armature = job["armature_kg_m2"]
+    if with_hfield:
+        hf = job["hfield"]
+        heights = np.array(hf["heights_m"], dtype=np.float64).reshape(hf["nrow"], hf["ncol"])
+        lo, hi = float(heights.min()), float(heights.max())
+        span = max(hi - lo, 1e-3)
+        spec.add_hfield(name="terrain", size=[hf["half_x_m"], hf["half_y_m"], span, 0.1],
+                        nrow=hf["nrow"], ncol=hf["ncol"],
+                        userdata=((heights - lo) / span).flatten().tolist())
+        spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_HFIELD, hfieldname="terrain",
+                                pos=[0.0, 0.0, lo])
+    else:
+        spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 1.0])
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    names = job["joint_names"]
+    qadr = np.array([model.jnt_qposadr[model.joint(n).id] for n in names])
+    vadr = np.array([model.jnt_dofadr[model.joint(n).id] for n in names])
+    return model, data, qadr, vadr
+
+
+def reset(model, data, qadr, job, z0):
+    mujoco.mj_resetData(model, data)
+    data.qpos[0:3] = [0.0, 0.0, z0]
+    data.qpos[3:7] = [1.0, 0.0, 0.0, 0.0]
+    data.qpos[qadr] = job["q0_rad"]
+    mujoco.mj_forward(model, data)
+
+
+def csp(job, qd, q, qdot):
+    vel = np.clip(job["kp1_per_s"] * (qd - q), -np.array(job["velocity_limit_rad_s"]), job["velocity_limit_rad_s"])
+    tau = job["kp2_nms_per_rad"] * (vel - qdot)
+    lim = np.array(job["torque_limit_nm"])
+    return np.clip(tau, -lim, lim)
+
+
+def step(model, data, qadr, vadr, job, qd):
+    tau = csp(job, qd, data.qpos[qadr], data.qvel[vadr])
+    data.qfrc_applied[:] = 0.0
+    data.qfrc_applied[vadr] = tau
+    mujoco.mj_step(model, data)
+    return tau
+
+
+def timed_walk(model, data, qadr, vadr, job, steps):
+    targets = np.array(job["gait_targets_rad"])
+    q0 = np.array(job["q0_rad"])
+    for _ in range(job["settle_steps"]):
+        step(model, data, qadr, vadr, job, q0)
+    contacts = 0
+    start = time.perf_counter()
+    for k in range(steps):
+        step(model, data, qadr, vadr, job, targets[k % len(targets)])
+        contacts += data.ncon
+    elapsed = time.perf_counter() - start
+    return steps / elapsed, contacts / steps
+
+
+def main():
+    job = json.load(open(sys.argv[1]))
+    out = {"mujoco_version": mujoco.__version__}
+    # Fidelity: stand with noslip on (MuJoCo's soft friction otherwise lets loaded feet creep).
+    model, data, qadr, vadr = build(job, False)
+    model.opt.noslip_iterations = 10
+    reset(model, data, qadr, job, job["spawn_height_m"])
+    q0 = np.array(job["q0_rad"])
+    tau = None
+    for _ in range(job["stand_steps"]):
+        tau = step(model, data, qadr, vadr, job, q0)
+    out["stand_height_m"] = float(data.qpos[2])
+    out["stand_torque_nm"] = [float(t) for t in tau]
+    targets = np.array(job["gait_targets_rad"])
+    x0 = data.qpos[0:2].copy()
+    for k in range(job["walk_steps"]):
+        step(model, data, qadr, vadr, job, targets[k % len(targets)])
+    out["walk_displacement_m"] = [float(v) for v in data.qpos[0:2] - x0]
+    out["walk_height_m"] = float(data.qpos[2])
+    # Speed: default solver settings.
+    if job.get("speed_steps", 0) > 0:
+        model, data, qadr, vadr = build(job, False)
+        reset(model, data, qadr, job, job["spawn_height_m"])
+        out["flat_steps_per_s"], out["flat_contacts"] = timed_walk(model, data, qadr, vadr, job, job["speed_steps"])
+        if "hfield" in job:
+            model, data, qadr, vadr = build(job, True)
+            reset(model, data, qadr, job, job["spawn_height_m"] + job["hfield"]["center_height_m"])
+            out["terrain_steps_per_s"], out["terrain_contacts"] = timed_walk(model, data, qadr, vadr, job, job["speed_steps"])
+    print(json.dumps(out))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,185 @@
+//! The MuJoCo peer: the same URDF, dt, drive law and scripted gait run in MuJoCo by
+//! `bench/mujoco_peer.py`, and the same measurements taken here in rapier, so speed and
+//! fidelity are compared side by side in one run.
+
+use crate::gait::TripodGait;
+use crate::robot::RobotWorld;
+use crate::terrain::{Terrain, TerrainConfig, TileKind};
+use crate::urdf_model::{default_urdf_path, UrdfModel};
+use anyhow::{bail, Context};
+use hexapod_core::robot::{JOINT_NAMES, NUM_JOINTS, Q0_RAD, TORQUE_LIMIT_NM, VELOCITY_LIMIT_RAD_S};
+use hexapod_core::timing::{CSP_KP1_PER_S, CSP_KP2_NMS_PER_RAD, PHYSICS_DT_S};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// Physics steps standing before measuring (10 s).
+pub const STAND_STEPS: usize = 2000;
+/// Physics steps walking the scripted gait (10 s).
+pub const WALK_STEPS: usize = 2000;
+/// Base height at spawn, m.
+pub const SPAWN_HEIGHT_M: f32 = 0.35;
+
+/// What MuJoCo reported.
+#[derive(Debug, Deserialize)]
+pub struct PeerReport {
+    /// Version of the `mujoco` package.
+    pub mujoco_version: String,
+    /// Standing base height after 10 s (noslip on), m.
+    pub stand_height_m: f32,
+    /// Joint torques while standing, N m.
+    pub stand_torque_nm: Vec<f32>,
+    /// Base displacement (x, y) after 10 s of the scripted gait, m.
+    pub walk_displacement_m: Vec<f32>,
+    /// Physics steps per second on flat ground (if measured).
+    pub flat_steps_per_s: Option<f64>,
+    /// Mean contacts per step on flat ground.
+    pub flat_contacts: Option<f64>,
+    /// Physics steps per second on the heightfield (if measured).
+    pub terrain_steps_per_s: Option<f64>,
+    /// Mean contacts per step on the heightfield.
+    pub terrain_contacts: Option<f64>,
+}
+
+/// The same measurements in rapier.
+#[derive(Debug)]
+pub struct FidelityReport {
+    /// Standing base height after 10 s, m.
+    pub stand_height_m: f32,
+    /// Joint torques while standing, N m.
+    pub stand_torque_nm: [f32; NUM_JOINTS],
+    /// Base displacement (x, y) after 10 s of the scripted gait, m.
+    pub walk_displacement_m: [f32; 2],
+}
+
+/// The gait both simulators walk.
+pub fn reference_gait() -> TripodGait {
+    TripodGait::default()
+}
+
+/// The rough heightfield both simulators are timed on: one 8 m tile of +-3 cm noise.
+pub fn bench_terrain() -> Terrain {
+    Terrain::generate(&TerrainConfig {
+        tiles: true,
+        rows: 1,
+        columns: vec![TileKind::RoughSlope],
+        max_slope_deg: 0.0,
+        rough_noise_m: 0.03,
+        border_m: 1.0,
+        ..Default::default()
+    })
+}
+
+/// Runs the fidelity procedure in rapier.
+pub fn rapier_fidelity() -> anyhow::Result<FidelityReport> {
+    let model = UrdfModel::load(&default_urdf_path())?;
+    let mut robot = RobotWorld::new(&model, Terrain::generate(&TerrainConfig::default()).collider(), 1)?;
+    robot.reset([0.0, 0.0, SPAWN_HEIGHT_M], [0.0, 0.0, 0.0, 1.0], &Q0_RAD);
+    for _ in 0..STAND_STEPS {
+        robot.step(&Q0_RAD);
+    }
+    let s = robot.state();
+    let stand_height_m = s.base_pos_world_m[2];
+    let stand_torque_nm = robot.torque_nm;
+    let gait = reference_gait();
+    for k in 0..WALK_STEPS {
+        robot.step(&gait.joint_targets(k as f32 * PHYSICS_DT_S));
+    }
+    let e = robot.state().base_pos_world_m;
+    Ok(FidelityReport {
+        stand_height_m,
+        stand_torque_nm,
+        walk_displacement_m: [e[0] - s.base_pos_world_m[0], e[1] - s.base_pos_world_m[1]],
+    })
+}
+
+/// The peer script shipped with the project.
+pub fn peer_script() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../bench/mujoco_peer.py")
+}
+
+/// Whether `python3 -c "import mujoco"` works here.
+pub fn mujoco_available() -> bool {
+    std::process::Command::new("python3")
+        .args(["-c", "import mujoco"])
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false)
+}
+
+/// Runs MuJoCo on the same job; `speed_steps` > 0 also times flat and heightfield stepping.
+pub fn run_mujoco(speed_steps: usize, settle_steps: usize) -> anyhow::Result<PeerReport> {
+    let gait = reference_gait();
+    let period_steps = (gait.period_s / PHYSICS_DT_S).round() as usize;
+    let targets: Vec<Vec<f32>> = (0..period_steps).map(|k| gait.joint_targets(k as f32 * PHYSICS_DT_S).to_vec()).collect();
+    let model = UrdfModel::load(&default_urdf_path())?;
+    let terrain = bench_terrain();
+    // MuJoCo's heightfield rows run along y, columns along x.
+    let mut heights = Vec::with_capacity(terrain.nx * terrain.ny);
+    for iy in 0..terrain.ny {
+        for ix in 0..terrain.nx {
+            heights.push(terrain.heights_m[ix * terrain.ny + iy]);
+        }
+    }
+    let cell = terrain.config.cell_size_m;
+    let [cx, cy] = terrain.tile_center_m(0, 0);
+    let job = serde_json::json!({
+        "urdf": default_urdf_path().canonicalize()?,
+        "dt_s": PHYSICS_DT_S,
+        "armature_kg_m2": model.armature_kg_m2,
+        "joint_names": JOINT_NAMES,
+        "q0_rad": Q0_RAD,
+        "gait_targets_rad": targets,
+        "kp1_per_s": CSP_KP1_PER_S,
+        "kp2_nms_per_rad": CSP_KP2_NMS_PER_RAD,
+        "velocity_limit_rad_s": VELOCITY_LIMIT_RAD_S,
+        "torque_limit_nm": TORQUE_LIMIT_NM,
+        "spawn_height_m": SPAWN_HEIGHT_M,
+        "stand_steps": STAND_STEPS,
+        "walk_steps": WALK_STEPS,
+        "settle_steps": settle_steps,
+        "speed_steps": speed_steps,
+        "hfield": {
+            "nrow": terrain.ny, "ncol": terrain.nx,
+            "half_x_m": (terrain.nx - 1) as f32 * cell / 2.0,
+            "half_y_m": (terrain.ny - 1) as f32 * cell / 2.0,
+            "heights_m": heights,
+            "center_height_m": terrain.height_at_m(cx, cy),
+        },
+    });
+    let dir = std::env::temp_dir().join(format!("hexapod-peer-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    let job_path = dir.join("job.json");
+    std::fs::write(&job_path, serde_json::to_vec(&job)?)?;
+    let output = std::process::Command::new("python3")
+        .arg(peer_script())
+        .arg(&job_path)
+        .output()
+        .context("running python3 bench/mujoco_peer.py (pip install mujoco numpy)")?;
+    let _ = std::fs::remove_dir_all(&dir);
+    if !output.status.success() {
+        bail!("MuJoCo peer failed: {}", String::from_utf8_lossy(&output.stderr));
+    }
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    serde_json::from_str(stdout.trim()).with_context(|| format!("parsing MuJoCo peer output: {stdout}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn feet_report_forces_on_the_heightfield() {
+        let rough = bench_terrain();
+        let [cx, cy] = rough.tile_center_m(0, 0);
+        let model = UrdfModel::load(&default_urdf_path()).unwrap();
+        let mut robot = RobotWorld::new(&model, rough.collider(), 1).unwrap();
+        robot.reset([cx, cy, SPAWN_HEIGHT_M + rough.height_at_m(cx, cy)], [0.0, 0.0, 0.0, 1.0], &Q0_RAD);
+        for _ in 0..400 {
+            robot.step(&Q0_RAD);
+        }
+        let c = robot.contacts();
+        let fz: f32 = c.foot_force_world_n.iter().map(|f| f[2]).sum();
+        eprintln!("fz {fz} contacts {} z {}", robot.num_contact_points(), robot.state().base_pos_world_m[2]);
+        assert!((fz - 25.5 * 9.81).abs() < 30.0, "fz {fz}");
+    }
+}

@@ -7,11 +7,13 @@
 //! - [`rig::DriveRig`]: two buses with the robot's 18 drives;
 //! - [`imu::ImuModel`]: IMU readings from a simulated state, with noise, bias, staleness;
 //! - [`rc::RcSource`]: a CRSF receiver stream, with link loss;
+//! - [`clock::MockClock`]: a settable clock;
 //! - [`candump`]: traffic logs in the candump format;
 //! - [`harness::Harness`]: controller core + rig + sensors + plant in 1 ms steps.
 
 pub mod bus;
 pub mod candump;
+pub mod clock;
 pub mod drive;
 pub mod harness;
 pub mod imu;

@@ -68,6 +68,17 @@ impl DriveRig {
         }
     }
 
+    /// Injects a drive fault: the drive goes to Fault (torque off) and sends its EMCY.
+    pub fn inject_drive_fault(&mut self, joint: usize, error_code: u16) {
+        self.drives[joint].inject_fault(error_code, &mut self.out);
+        self.flush(joint);
+    }
+
+    /// Silences (or revives) a drive: no heartbeat, no PDOs, no SDO answers.
+    pub fn set_drive_mute(&mut self, joint: usize, muted: bool) {
+        self.drives[joint].set_mute(muted);
+    }
+
     /// Advances the drive side to `now_us`.
     pub fn step<P: JointPlant>(&mut self, now_us: u64, plant: &mut P) {
         for b in &mut self.buses {

@@ -136,11 +136,7 @@ fn rc_loss_sits_down_then_recovers_after_disarm() {
 #[test]
 fn drive_emcy_sits_down_on_the_other_drives_and_recovers_by_fault_reset() {
     let mut h = walking();
-    let mut out = Vec::new();
-    h.rig.drives[4].inject_fault(0x4310, &mut out);
-    for f in &out {
-        h.rig.buses[0].send_from_drive(f);
-    }
+    h.rig.inject_drive_fault(4, 0x4310);
     h.run(0.1, &mut ZeroPolicy, &mut physics);
     let mode = h.controller.mode();
     assert!(
@@ -181,7 +177,7 @@ fn drive_emcy_sits_down_on_the_other_drives_and_recovers_by_fault_reset() {
 #[test]
 fn lost_heartbeat_sits_down() {
     let mut h = walking();
-    h.rig.drives[14].set_mute(true);
+    h.rig.set_drive_mute(14, true);
     h.run(0.5, &mut ZeroPolicy, &mut physics);
     let mode = h.controller.mode();
     assert!(

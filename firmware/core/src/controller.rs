@@ -10,6 +10,24 @@
 //! 3. [`Controller::finish_cycle`]: supervisor, observation, policy, clamps, RPDOs.
 //!
 //! A cycle that finishes late or starts late counts as a deadline overrun (a fault).
+//!
+//! How a firmware task (or the host harness, `hal_mock::harness`) drives it:
+//!
+//! ```text
+//! controller.start(clock.now_us());
+//! loop every 20 ms:
+//!     controller.begin_cycle(now);                       // SYNC
+//!     until controller.feedback_ready(now):              // TPDOs, <= 6 ms
+//!         controller.service_bus(0, &mut fdcan1, now);
+//!         controller.service_bus(1, &mut fdcan2, now);
+//!         controller.service_imu(&mut imu);
+//!         controller.service_rc(&mut crsf_uart, now);
+//!     controller.finish_cycle(now, &mut policy);         // supervisor, policy, RPDOs
+//!     controller.service_bus(0, ..); controller.service_bus(1, ..);  // send them
+//! ```
+//!
+//! `service_bus` must run at least every few milliseconds between cycles too: it carries
+//! the SDO configuration and the master's heartbeat, which the drives supervise.
 
 use crate::attitude::{AttitudeConfig, AttitudeFilter};
 use crate::can_frame::CanFrame;

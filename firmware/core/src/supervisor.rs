@@ -106,15 +106,24 @@ pub enum Reaction {
 }
 
 impl Fault {
+    /// The fault of a drive as the master reports it (bus-off names the bus).
+    pub fn from_drive((joint, fault): (usize, NodeFault)) -> Self {
+        match fault {
+            NodeFault::BusOff => Fault::BusOff {
+                bus: can_bus(joint) as u8,
+            },
+            fault => Fault::Drive {
+                joint: joint as u8,
+                fault,
+            },
+        }
+    }
+
     /// The reaction table of the module docs.
     pub fn reaction(self) -> Reaction {
         match self {
             Fault::Tilt | Fault::EnableTimeout => Reaction::TorqueOff,
             Fault::BusOff { .. } => Reaction::Hold,
-            Fault::Drive {
-                fault: NodeFault::BusOff,
-                ..
-            } => Reaction::Hold,
             _ => Reaction::SitDown,
         }
     }
@@ -272,16 +281,8 @@ impl Supervisor {
         if i.tilt_rad.is_nan() || i.tilt_rad > self.config.tilt_limit_rad {
             return Some(Fault::Tilt);
         }
-        if let Some((joint, fault)) = i.drive_fault {
-            return Some(match fault {
-                NodeFault::BusOff => Fault::BusOff {
-                    bus: can_bus(joint) as u8,
-                },
-                fault => Fault::Drive {
-                    joint: joint as u8,
-                    fault,
-                },
-            });
+        if let Some(drive_fault) = i.drive_fault {
+            return Some(Fault::from_drive(drive_fault));
         }
         if !i.imu_fresh {
             return Some(Fault::ImuStale);
@@ -339,24 +340,18 @@ impl Supervisor {
         match self.mode {
             Mode::Boot => {}
             Mode::Configuring => {
-                if let Some((joint, fault)) = i.drive_fault {
+                if let Some(drive_fault) = i.drive_fault {
                     self.mode = Mode::Faulted {
-                        fault: Fault::Drive {
-                            joint: joint as u8,
-                            fault,
-                        },
+                        fault: Fault::from_drive(drive_fault),
                     };
                 } else if !i.configuring {
                     self.mode = Mode::Disabled;
                 }
             }
             Mode::Disabled => {
-                if let Some((joint, fault)) = i.drive_fault {
+                if let Some(drive_fault) = i.drive_fault {
                     self.mode = Mode::Faulted {
-                        fault: Fault::Drive {
-                            joint: joint as u8,
-                            fault,
-                        },
+                        fault: Fault::from_drive(drive_fault),
                     };
                 } else if arm_edge && fault.is_none() {
                     self.mode = Mode::Enabling { since_us: now };

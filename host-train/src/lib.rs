@@ -10,4 +10,5 @@ pub mod env;
 pub mod error;
 pub mod metrics;
 pub mod nn;
+pub mod priors;
 pub mod runner;

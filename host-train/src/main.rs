@@ -16,6 +16,8 @@ struct Cli {
 enum Command {
     /// Train a policy (PPO + AMP) from a TOML preset.
     Train(cli::train::TrainArgs),
+    /// Generate the motion-prior dataset by trajectory optimization, check or replay it.
+    Priors(cli::priors::PriorsArgs),
     /// Run a checkpoint and write its trajectory, plots and a 3D replay.
     Play(cli::play::PlayArgs),
     /// Evaluate a checkpoint: tracking error, fall rate, tripod score.
@@ -26,6 +28,7 @@ fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Train(args) => cli::train::run(args),
+        Command::Priors(args) => cli::priors::run(args),
         Command::Play(args) => cli::play::run(args),
         Command::Eval(args) => cli::eval::run(args),
     }

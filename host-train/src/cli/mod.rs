@@ -2,5 +2,6 @@
 
 pub mod eval;
 pub mod play;
+pub mod priors;
 pub mod replay;
 pub mod train;

@@ -1,0 +1,241 @@
+//! Tests across the priors pipeline: loader on good and bad files, dataset sampling, AMP
+//! states shared with the simulator, replay in host-sim, and the committed dataset.
+
+use super::clip::{ClipError, LoopMode, MotionClip};
+use super::command::{default_commands, GaitCommand};
+use super::dataset::MotionDataset;
+use super::generate::{generate_clip, GeneratorConfig};
+use super::replay::{replay_clip, sim_amp_state, ReplayConfig};
+use hexapod_core::robot::{TRIPOD_A, TRIPOD_B};
+use host_sim::frames::rotate;
+use host_sim::robot::{RobotState, RobotWorld};
+use rand::SeedableRng;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+fn clip(name: &str, vx: f64, vy: f64, wz: f64) -> MotionClip {
+    generate_clip(&GaitCommand::new(name, vx, vy, wz), &GeneratorConfig::default()).unwrap().0
+}
+
+/// Parses `clip` after `edit` changed its JSON.
+fn parse_edited(clip: &MotionClip, edit: impl FnOnce(&mut Value)) -> Result<MotionClip, ClipError> {
+    let mut v: Value = serde_json::from_str(&clip.to_json()).unwrap();
+    edit(&mut v);
+    MotionClip::parse(Path::new("bad.json"), &v.to_string())
+}
+
+fn assert_field_error(err: ClipError, frame: usize, field: &str) {
+    let text = err.to_string();
+    match err {
+        ClipError::Field { file, frame: f, field: name, .. } => {
+            assert_eq!(file, PathBuf::from("bad.json"));
+            assert_eq!((f, name.as_str()), (frame, field), "{text}");
+            assert!(text.starts_with("bad.json: frame "), "{text}");
+        }
+        other => panic!("expected a field error, got {other}"),
+    }
+}
+
+#[test]
+fn generated_clip_round_trips_through_the_loader() {
+    let c = clip("fwd", 0.3, 0.0, 0.0);
+    let back = MotionClip::parse(Path::new("fwd.json"), &c.to_json()).unwrap();
+    assert_eq!(back.frames.len(), 30);
+    assert_eq!(back.loop_mode, LoopMode::Wrap);
+    assert_eq!(back.command, [0.3, 0.0, 0.0]);
+    for (a, b) in c.frames.iter().zip(&back.frames) {
+        for (x, y) in a.to_row().iter().zip(b.to_row().iter()) {
+            assert!((x - y).abs() < 2e-6);
+        }
+    }
+    assert_eq!(back.metadata, c.metadata);
+}
+
+#[test]
+fn loader_refuses_wrong_frame_lengths() {
+    let c = clip("fwd", 0.2, 0.0, 0.0);
+    let err = parse_edited(&c, |v| {
+        v["Frames"][7].as_array_mut().unwrap().pop();
+    })
+    .unwrap_err();
+    assert!(matches!(err, ClipError::FrameLength { frame: 7, got: 72, .. }), "{err}");
+    assert!(err.to_string().contains("bad.json: frame 7: has 72 values, expected 73"));
+}
+
+#[test]
+fn loader_refuses_non_finite_values() {
+    let c = clip("fwd", 0.2, 0.0, 0.0);
+    // JSON has no NaN: a huge number overflows f32 to infinity.
+    let err = parse_edited(&c, |v| v["Frames"][3][9] = Value::from(1e300)).unwrap_err();
+    assert_field_error(err, 3, "joint_pos[2]");
+    let err = MotionClip::parse(Path::new("bad.json"), &c.to_json().replacen("\"Frames\":[[", "\"Frames\":[[NaN,", 1))
+        .unwrap_err();
+    assert!(matches!(err, ClipError::Json { .. }), "{err}");
+}
+
+#[test]
+fn loader_refuses_non_periodic_loops() {
+    let c = clip("fwd", 0.4, 0.0, 0.0);
+    // Two thirds of a cycle declared as a loop: the jump from the last frame to the first is
+    // not what the velocities say.
+    let err = parse_edited(&c, |v| v["Frames"].as_array_mut().unwrap().truncate(20)).unwrap_err();
+    let text = err.to_string();
+    assert!(text.contains("loop wrap"), "{text}");
+    match err {
+        ClipError::Field { frame, field, .. } => {
+            assert_eq!(frame, 0);
+            assert!(field.starts_with("joint_pos["), "{field}");
+        }
+        other => panic!("{other}"),
+    }
+    // The same frames as a clamped clip are fine.
+    let ok = parse_edited(&c, |v| {
+        v["Frames"].as_array_mut().unwrap().truncate(20);
+        v["LoopMode"] = Value::from("Clamp");
+    });
+    assert!(ok.is_ok());
+}
+
+#[test]
+fn loader_refuses_inconsistent_frames() {
+    let c = clip("fwd", 0.2, 0.0, 0.0);
+    let err = parse_edited(&c, |v| v["Frames"][5][3] = Value::from(0.5)).unwrap_err();
+    assert_field_error(err, 5, "base_quat[0]");
+    let err = parse_edited(&c, |v| v["Frames"][4][25 + 3 * 2 + 1] = Value::from(0.0)).unwrap_err();
+    assert_field_error(err, 4, "foot_pos[7]");
+    let err = parse_edited(&c, |v| v["Frames"][2][67 + 4] = Value::from(0.5)).unwrap_err();
+    assert_field_error(err, 2, "contact[4]");
+    let err = parse_edited(&c, |v| v["Frames"][9][7] = Value::from(2.0)).unwrap_err();
+    assert_field_error(err, 9, "joint_pos[0]");
+    let err = parse_edited(&c, |v| v["FrameDuration"] = Value::from(0.0167)).unwrap_err();
+    assert!(matches!(err, ClipError::Header { field: "FrameDuration", .. }), "{err}");
+    let err = parse_edited(&c, |v| v["MotionWeight"] = Value::from(-1.0)).unwrap_err();
+    assert!(matches!(err, ClipError::Header { field: "MotionWeight", .. }), "{err}");
+    let err = parse_edited(&c, |v| v["Extra"] = Value::from(1)).unwrap_err();
+    assert!(matches!(err, ClipError::Json { .. }), "{err}");
+}
+
+#[test]
+fn transitions_follow_the_weights_and_the_frame_order() {
+    let mut a = clip("a", 0.2, 0.0, 0.0);
+    let mut b = clip("b", 0.0, 0.0, 0.5);
+    a.motion_weight = 3.0;
+    b.motion_weight = 1.0;
+    let data = MotionDataset::new(vec![a, b]);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let samples = data.sample_transitions(&mut rng, 4000);
+    let mut from_a = 0;
+    for (s, s_next) in &samples {
+        let (clip, k) = (0..2)
+            .find_map(|c| data.amp_states(c).iter().position(|x| x == s).map(|k| (c, k)))
+            .expect("a state of the dataset");
+        let n = data.clips()[clip].frames.len();
+        assert_eq!(&data.amp_states(clip)[(k + 1) % n], s_next);
+        from_a += (clip == 0) as usize;
+    }
+    let share = from_a as f64 / samples.len() as f64;
+    assert!((share - 0.75).abs() < 0.03, "{share}");
+}
+
+#[test]
+fn clip_and_simulator_compute_the_same_amp_state() {
+    let c = clip("turn", 0.3, 0.0, 0.4);
+    let states = c.amp_states();
+    for (k, f) in c.frames.iter().enumerate() {
+        // The simulator's state for the same instant, velocities in the world frame.
+        let s = RobotState {
+            base_pos_world_m: f.base_pos_world_m,
+            base_quat_xyzw: f.base_quat_xyzw,
+            base_lin_vel_world_m_s: rotate(f.base_quat_xyzw, f.lin_vel_base_m_s),
+            base_ang_vel_world_rad_s: rotate(f.base_quat_xyzw, f.ang_vel_base_rad_s),
+            q_rad: f.joint_pos_rad,
+            qdot_rad_s: f.joint_vel_rad_s,
+        };
+        let sim = sim_amp_state(&s);
+        for i in 0..sim.len() {
+            assert!((sim[i] - states[k][i]).abs() < 1e-5, "frame {k} entry {i}");
+        }
+    }
+}
+
+fn robot() -> RobotWorld {
+    let model = host_sim::urdf_model::UrdfModel::load(&host_sim::urdf_model::default_urdf_path()).unwrap();
+    let ground = host_sim::terrain::Terrain::generate(&Default::default()).collider();
+    RobotWorld::new(&model, ground, 1).unwrap()
+}
+
+#[test]
+fn replayed_clips_walk_at_the_command_in_the_simulator() {
+    let cfg = ReplayConfig { cycles: 4, ..Default::default() };
+    for c in [clip("fwd", 0.4, 0.0, 0.0), clip("left", 0.0, 0.2, 0.0), clip("turn", 0.0, 0.0, -0.5)] {
+        let r = replay_clip(&mut robot(), &c, &cfg);
+        assert!(r.passed, "{}", r.summary());
+    }
+    // A negative control: frozen joints while the clip claims 0.4 m/s must fail.
+    let mut frozen = clip("frozen", 0.4, 0.0, 0.0);
+    let first = frozen.frames[0].clone();
+    for f in &mut frozen.frames {
+        f.joint_pos_rad = first.joint_pos_rad;
+    }
+    let r = replay_clip(&mut robot(), &frozen, &cfg);
+    assert!(!r.passed, "{}", r.summary());
+}
+
+fn committed_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/priors")
+}
+
+#[test]
+fn committed_dataset_is_complete_and_tripod() {
+    let data = MotionDataset::load_dir(&committed_dir()).unwrap();
+    assert!(data.duration_s() >= 8.6, "{} s", data.duration_s());
+    let cmds: Vec<[f32; 3]> = data.clips().iter().map(|c| c.command).collect();
+    let has = |f: &dyn Fn(&[f32; 3]) -> bool| cmds.iter().filter(|c| f(c)).count();
+    assert!(has(&|c| c[0] > 0.0 && c[1] == 0.0 && c[2] == 0.0) >= 2, "forward at two speeds");
+    assert!(has(&|c| c[0] < 0.0 && c[1] == 0.0 && c[2] == 0.0) >= 2, "backward at two speeds");
+    assert!(has(&|c| c[0] == 0.0 && c[1] > 0.0) >= 1 && has(&|c| c[0] == 0.0 && c[1] < 0.0) >= 1);
+    assert!(has(&|c| c[0] == 0.0 && c[2] > 0.0) >= 1 && has(&|c| c[0] == 0.0 && c[2] < 0.0) >= 1);
+    assert!(has(&|c| c[0] != 0.0 && c[2] != 0.0) >= 1, "forward + turn");
+    assert!(has(&|c| c[0] != 0.0 && c[1] != 0.0) >= 1, "diagonal");
+    for c in data.clips() {
+        let n = c.frames.len();
+        for set in [TRIPOD_A, TRIPOD_B] {
+            let stance = c.frames.iter().filter(|f| f.contacts[set[0].index()]).count();
+            assert!(stance as f64 / n as f64 >= 0.5, "{}: duty factor", c.name);
+            for f in &c.frames {
+                assert!(set.iter().all(|l| f.contacts[l.index()] == f.contacts[set[0].index()]));
+            }
+        }
+        // A and B lift off alternately, once each per cycle.
+        let lift_offs: Vec<char> = (0..n)
+            .flat_map(|k| {
+                let (prev, cur) = (&c.frames[(k + n - 1) % n], &c.frames[k]);
+                [('A', TRIPOD_A[0]), ('B', TRIPOD_B[0])]
+                    .into_iter()
+                    .filter(move |(_, l)| prev.contacts[l.index()] && !cur.contacts[l.index()])
+                    .map(|(name, _)| name)
+            })
+            .collect();
+        assert_eq!(lift_offs, vec!['A', 'B'], "{}", c.name);
+    }
+}
+
+#[test]
+fn committed_dataset_is_what_the_generator_makes() {
+    let dir = committed_dir();
+    for cmd in default_commands() {
+        let fresh = generate_clip(&cmd, &GeneratorConfig::default()).unwrap().0;
+        let stored = MotionClip::load(&dir.join(format!("{}.json", cmd.name))).unwrap();
+        assert_eq!(fresh.frames.len(), stored.frames.len(), "{}", cmd.name);
+        for (k, (a, b)) in fresh.frames.iter().zip(&stored.frames).enumerate() {
+            for (i, (x, y)) in a.to_row().iter().zip(b.to_row().iter()).enumerate() {
+                assert!(
+                    (x - y).abs() < 1e-4,
+                    "{}: frame {k} {}: stale dataset, run `hexapod priors --out assets/priors`",
+                    cmd.name,
+                    super::frame::field_name(i)
+                );
+            }
+        }
+    }
+}

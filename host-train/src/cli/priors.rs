@@ -43,7 +43,11 @@ pub fn run(args: PriorsArgs) -> anyhow::Result<()> {
             (clips, args.out.clone(), Some(reports))
         }
     };
-    let replays = if args.validate { Some(validate(&clips)?) } else { None };
+    let replays = if args.validate {
+        Some(validate(&clips)?)
+    } else {
+        None
+    };
     if let Some(reports) = &gen_reports {
         let path = dir.join("report.md");
         std::fs::write(&path, report_markdown(reports, replays.as_deref()))
@@ -52,7 +56,11 @@ pub fn run(args: PriorsArgs) -> anyhow::Result<()> {
     }
     println!("done in {:.1} s", started.elapsed().as_secs_f32());
     if let Some(replays) = &replays {
-        let failed: Vec<&str> = replays.iter().filter(|r| !r.passed).map(|r| r.name.as_str()).collect();
+        let failed: Vec<&str> = replays
+            .iter()
+            .filter(|r| !r.passed)
+            .map(|r| r.name.as_str())
+            .collect();
         if !failed.is_empty() {
             bail!("replay failed for {}", failed.join(", "));
         }
@@ -62,7 +70,8 @@ pub fn run(args: PriorsArgs) -> anyhow::Result<()> {
 
 fn generate(out: &Path, plots: bool) -> anyhow::Result<(Vec<MotionClip>, Vec<ClipReport>)> {
     let plot_dir = out.join("plots");
-    std::fs::create_dir_all(&plot_dir).with_context(|| format!("creating {}", plot_dir.display()))?;
+    std::fs::create_dir_all(&plot_dir)
+        .with_context(|| format!("creating {}", plot_dir.display()))?;
     let cfg = GeneratorConfig::default();
     let commands = default_commands();
     println!(
@@ -76,7 +85,12 @@ fn generate(out: &Path, plots: bool) -> anyhow::Result<(Vec<MotionClip>, Vec<Cli
     let mut reports = Vec::new();
     for (i, command) in commands.iter().enumerate() {
         let (clip, report, _) = generate_clip(command, &cfg)?;
-        println!("[priors {:>2}/{}] {}", i + 1, commands.len(), report.summary());
+        println!(
+            "[priors {:>2}/{}] {}",
+            i + 1,
+            commands.len(),
+            report.summary()
+        );
         let path = out.join(format!("{}.json", clip.name));
         clip.save(&path)?;
         // What was written must pass the loader.
@@ -88,7 +102,11 @@ fn generate(out: &Path, plots: bool) -> anyhow::Result<(Vec<MotionClip>, Vec<Cli
         reports.push(report);
     }
     let total_s: f32 = clips.iter().map(MotionClip::duration_s).sum();
-    println!("[priors] wrote {} clips, {total_s:.2} s of motion, into {}", clips.len(), out.display());
+    println!(
+        "[priors] wrote {} clips, {total_s:.2} s of motion, into {}",
+        clips.len(),
+        out.display()
+    );
     let names: Vec<String> = clips.iter().map(|c| format!("{}.json", c.name)).collect();
     for entry in std::fs::read_dir(out)?.flatten() {
         let name = entry.file_name().to_string_lossy().into_owned();
@@ -104,8 +122,19 @@ fn check(dir: &Path) -> anyhow::Result<Vec<MotionClip>> {
     for (i, clip) in dataset.clips().iter().enumerate() {
         let states = dataset.amp_states(i);
         let n = clip.frames.len() as f32;
-        let mean_v = [0, 1].map(|k| clip.frames.iter().map(|f| f.lin_vel_base_m_s[k]).sum::<f32>() / n);
-        let mean_w = clip.frames.iter().map(|f| f.ang_vel_base_rad_s[2]).sum::<f32>() / n;
+        let mean_v = [0, 1].map(|k| {
+            clip.frames
+                .iter()
+                .map(|f| f.lin_vel_base_m_s[k])
+                .sum::<f32>()
+                / n
+        });
+        let mean_w = clip
+            .frames
+            .iter()
+            .map(|f| f.ang_vel_base_rad_s[2])
+            .sum::<f32>()
+            / n;
         println!(
             "[check] {:<28} ok: {} frames ({:.2} s, {:?}), weight {}, command ({:+.2}, {:+.2}, {:+.2}), mean velocity ({:+.3}, {:+.3}, {:+.3}), {} AMP states",
             clip.name,
@@ -122,7 +151,11 @@ fn check(dir: &Path) -> anyhow::Result<Vec<MotionClip>> {
             states.len()
         );
     }
-    println!("[check] {} clips, {:.2} s of motion: all valid", dataset.clips().len(), dataset.duration_s());
+    println!(
+        "[check] {} clips, {:.2} s of motion: all valid",
+        dataset.clips().len(),
+        dataset.duration_s()
+    );
     Ok(dataset.clips().to_vec())
 }
 
@@ -138,7 +171,10 @@ fn validate(clips: &[MotionClip]) -> anyhow::Result<Vec<ReplayReport>> {
         reports.push(report);
     }
     let passed = reports.iter().filter(|r| r.passed).count();
-    println!("[replay] {passed}/{} clips upright and within 25 % of the command", reports.len());
+    println!(
+        "[replay] {passed}/{} clips upright and within 25 % of the command",
+        reports.len()
+    );
     Ok(reports)
 }
 
@@ -159,7 +195,10 @@ fn report_markdown(reports: &[ClipReport], replays: Option<&[ReplayReport]>) -> 
         );
     }
     if let Some(replays) = replays {
-        let _ = writeln!(s, "\n## Replay in host-sim (drives tracking the joint trajectories)\n");
+        let _ = writeln!(
+            s,
+            "\n## Replay in host-sim (drives tracking the joint trajectories)\n"
+        );
         let _ = writeln!(s, "| clip | result | command (vx, vy, wz) | simulated mean (vx, vy, wz) | planar error / tolerance m/s | yaw-rate error / tolerance rad/s | max tilt rad | min height m | joint RMS vs clip rad |");
         let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
         for r in replays {

@@ -3,7 +3,9 @@
 
 use super::feet::FootPlan;
 use super::frame::Frame;
-use super::geom::{add, log_so3, mul_mm, mul_mtv, mul_mv, norm, quat_xyzw, rot_rpy, rot_z, scale, sub, M3, V3};
+use super::geom::{
+    add, log_so3, mul_mm, mul_mtv, mul_mv, norm, quat_xyzw, rot_rpy, rot_z, scale, sub, M3, V3,
+};
 use super::optimize::GaitSolution;
 use hexapod_core::kinematics::{foot_positions_base, leg_inverse_kinematics, IkError};
 use hexapod_core::robot::{
@@ -80,8 +82,14 @@ pub fn assemble(
         let mut q = [0.0f32; NUM_JOINTS];
         for leg in Leg::ALL {
             let foot_base = mul_mtv(&rot_c, sub(sol.feet_m[k][leg.index()], pos_c));
-            let q_leg = leg_inverse_kinematics(leg, foot_base.map(|v| v as f32))
-                .map_err(|reason| AssembleError::Unreachable { frame: k, leg, reason })?;
+            let q_leg =
+                leg_inverse_kinematics(leg, foot_base.map(|v| v as f32)).map_err(|reason| {
+                    AssembleError::Unreachable {
+                        frame: k,
+                        leg,
+                        reason,
+                    }
+                })?;
             q[3 * leg.index()..3 * leg.index() + 3].copy_from_slice(&q_leg);
             let (lt, ls) = (THIGH_LENGTH_M as f64, SHANK_LENGTH_M as f64);
             let reach = (lt * lt + ls * ls + 2.0 * lt * ls * (q_leg[2] as f64).cos()).sqrt();
@@ -90,7 +98,11 @@ pub fn assemble(
         for (joint, &angle) in q.iter().enumerate() {
             let m = (angle - Q_MIN_RAD[joint]).min(Q_MAX_RAD[joint] - angle) as f64;
             if m < 0.0 {
-                return Err(AssembleError::JointLimit { frame: k, joint, angle_rad: angle });
+                return Err(AssembleError::JointLimit {
+                    frame: k,
+                    joint,
+                    angle_rad: angle,
+                });
             }
             margin_limit = margin_limit.min(m);
         }
@@ -103,7 +115,10 @@ pub fn assemble(
         let (pos_prev, rot_prev) = base_pose(plan, sol, k as i64 - 1);
         let (pos_next, rot_next) = base_pose(plan, sol, k as i64 + 1);
         let lin_vel = mul_mtv(&rot, scale(0.5 / dt, sub(pos_next, pos_prev)));
-        let ang_vel = scale(0.5 / dt, log_so3(&mul_mm(&super::geom::transpose(&rot_prev), &rot_next)));
+        let ang_vel = scale(
+            0.5 / dt,
+            log_so3(&mul_mm(&super::geom::transpose(&rot_prev), &rot_next)),
+        );
         let (qp, qn) = (&q_all[(k + n - 1) % n], &q_all[(k + 1) % n]);
         let q = q_all[k];
         let quat = quat_xyzw(&rot);
@@ -129,7 +144,12 @@ pub fn assemble(
 }
 
 /// World positions of the feet at frame `k` from the base pose and forward kinematics.
-fn feet_world(plan: &FootPlan, sol: &GaitSolution, q_all: &[[f32; NUM_JOINTS]], k: i64) -> [V3; NUM_LEGS] {
+fn feet_world(
+    plan: &FootPlan,
+    sol: &GaitSolution,
+    q_all: &[[f32; NUM_JOINTS]],
+    k: i64,
+) -> [V3; NUM_LEGS] {
     let n = q_all.len() as i64;
     let (pos, rot) = base_pose(plan, sol, k);
     foot_positions_base(&q_all[k.rem_euclid(n) as usize])
@@ -153,7 +173,12 @@ fn stance_foot_speed(plan: &FootPlan, sol: &GaitSolution, q_all: &[[f32; NUM_JOI
 }
 
 fn swing_apex(sol: &GaitSolution) -> f64 {
-    let stance_z = sol.feet_m.iter().flatten().map(|f| f[2]).fold(f64::INFINITY, f64::min);
+    let stance_z = sol
+        .feet_m
+        .iter()
+        .flatten()
+        .map(|f| f[2])
+        .fold(f64::INFINITY, f64::min);
     let mut apex = [f64::NEG_INFINITY; NUM_LEGS];
     for feet in &sol.feet_m {
         for leg in 0..NUM_LEGS {

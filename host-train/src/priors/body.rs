@@ -6,7 +6,9 @@
 //! forward kinematics of `Q0_RAD` with the feet on flat ground.
 
 use hexapod_core::kinematics::foot_positions_base;
-use hexapod_core::robot::{FOOT_RADIUS_M, NUM_LEGS, Q0_RAD, TOTAL_MASS_KG, TRUNK_MASS_KG, TRUNK_SIZE_M};
+use hexapod_core::robot::{
+    FOOT_RADIUS_M, NUM_LEGS, Q0_RAD, TOTAL_MASS_KG, TRUNK_MASS_KG, TRUNK_SIZE_M,
+};
 
 /// Gravity acceleration.
 pub const GRAVITY_M_S2: f64 = 9.81;

@@ -14,7 +14,7 @@
 //! that disagree with the joints' forward kinematics, and `Wrap` loops whose last frame does
 //! not lead back to the first.
 
-use super::frame::{field_name, Frame, FRAME_DIM, FRAME_BASE_QUAT, FRAME_CONTACT, FRAME_JOINT_POS};
+use super::frame::{field_name, Frame, FRAME_BASE_QUAT, FRAME_CONTACT, FRAME_DIM, FRAME_JOINT_POS};
 use hexapod_core::amp::AMP_STATE_DIM;
 use hexapod_core::kinematics::foot_positions_base;
 use hexapod_core::robot::{NUM_JOINTS, Q_MAX_RAD, Q_MIN_RAD};
@@ -164,16 +164,20 @@ pub enum ClipError {
 impl MotionClip {
     /// Loads and validates a motion file.
     pub fn load(path: &Path) -> Result<Self, ClipError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| ClipError::Io { file: path.to_path_buf(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| ClipError::Io {
+            file: path.to_path_buf(),
+            source,
+        })?;
         Self::parse(path, &text)
     }
 
     /// Parses and validates the text of a motion file; `path` names it in errors.
     pub fn parse(path: &Path, text: &str) -> Result<Self, ClipError> {
         let file = path.to_path_buf();
-        let raw: ClipFile = serde_json::from_str(text)
-            .map_err(|source| ClipError::Json { file: file.clone(), source })?;
+        let raw: ClipFile = serde_json::from_str(text).map_err(|source| ClipError::Json {
+            file: file.clone(),
+            source,
+        })?;
         let header = |field: &'static str, reason: String| ClipError::Header {
             file: file.clone(),
             field,
@@ -184,17 +188,29 @@ impl MotionClip {
         {
             return Err(header(
                 "FrameDuration",
-                format!("{} s, expected the policy period {POLICY_DT_S} s", raw.frame_duration_s),
+                format!(
+                    "{} s, expected the policy period {POLICY_DT_S} s",
+                    raw.frame_duration_s
+                ),
             ));
         }
         if !(raw.motion_weight.is_finite() && raw.motion_weight > 0.0) {
-            return Err(header("MotionWeight", format!("{} is not positive", raw.motion_weight)));
+            return Err(header(
+                "MotionWeight",
+                format!("{} is not positive", raw.motion_weight),
+            ));
         }
         if raw.command.iter().any(|c| !c.is_finite()) {
-            return Err(header("Command", format!("{:?} is not finite", raw.command)));
+            return Err(header(
+                "Command",
+                format!("{:?} is not finite", raw.command),
+            ));
         }
         if raw.frames.len() < 2 {
-            return Err(header("Frames", format!("{} frames, need at least 2", raw.frames.len())));
+            return Err(header(
+                "Frames",
+                format!("{} frames, need at least 2", raw.frames.len()),
+            ));
         }
         let mut frames = Vec::with_capacity(raw.frames.len());
         for (k, values) in raw.frames.iter().enumerate() {
@@ -203,12 +219,19 @@ impl MotionClip {
                 .map(|&v| v as f32)
                 .collect::<Vec<_>>()
                 .try_into()
-                .map_err(|_| ClipError::FrameLength { file: file.clone(), frame: k, got: values.len() })?;
+                .map_err(|_| ClipError::FrameLength {
+                    file: file.clone(),
+                    frame: k,
+                    got: values.len(),
+                })?;
             check_frame(&file, k, &row)?;
             frames.push(Frame::from_row(&row));
         }
         let clip = Self {
-            name: path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
+            name: path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default(),
             loop_mode: raw.loop_mode,
             frame_duration_s: raw.frame_duration_s as f32,
             motion_weight: raw.motion_weight as f32,
@@ -239,8 +262,10 @@ impl MotionClip {
 
     /// Writes the clip to `path`.
     pub fn save(&self, path: &Path) -> Result<(), ClipError> {
-        std::fs::write(path, self.to_json() + "\n")
-            .map_err(|source| ClipError::Io { file: path.to_path_buf(), source })
+        std::fs::write(path, self.to_json() + "\n").map_err(|source| ClipError::Io {
+            file: path.to_path_buf(),
+            source,
+        })
     }
 
     /// Duration of the clip, s.
@@ -266,13 +291,19 @@ impl MotionClip {
     fn check_continuity(&self, file: &Path) -> Result<(), ClipError> {
         let dt = self.frame_duration_s;
         for k in 0..self.frames.len() {
-            let Some(next) = self.next_frame(k) else { continue };
+            let Some(next) = self.next_frame(k) else {
+                continue;
+            };
             let (a, b) = (&self.frames[k], &self.frames[next]);
             let field_err = |field: String, reason: String| ClipError::Field {
                 file: file.to_path_buf(),
                 frame: next,
                 field,
-                reason: if next == 0 { format!("{reason} (loop wrap from the last frame)") } else { reason },
+                reason: if next == 0 {
+                    format!("{reason} (loop wrap from the last frame)")
+                } else {
+                    reason
+                },
             };
             for j in 0..NUM_JOINTS {
                 let step = b.joint_pos_rad[j] - a.joint_pos_rad[j];
@@ -288,7 +319,10 @@ impl MotionClip {
             }
             let dz = b.base_height_m() - a.base_height_m();
             if dz.abs() > HEIGHT_STEP_TOL_M {
-                return Err(field_err("base_pos[2]".into(), format!("height jumps {dz:.4} m from frame {k}")));
+                return Err(field_err(
+                    "base_pos[2]".into(),
+                    format!("height jumps {dz:.4} m from frame {k}"),
+                ));
             }
         }
         Ok(())
@@ -314,15 +348,24 @@ fn check_frame(file: &Path, k: usize, row: &[f32; FRAME_DIM]) -> Result<(), Clip
     let quat = &row[FRAME_BASE_QUAT];
     let quat_norm = quat.iter().map(|v| v * v).sum::<f32>().sqrt();
     if (quat_norm - 1.0).abs() > 1e-3 {
-        return Err(err(FRAME_BASE_QUAT.start, format!("quaternion norm {quat_norm:.5}, expected 1")));
+        return Err(err(
+            FRAME_BASE_QUAT.start,
+            format!("quaternion norm {quat_norm:.5}, expected 1"),
+        ));
     }
     for i in FRAME_CONTACT {
         if row[i] != 0.0 && row[i] != 1.0 {
-            return Err(err(i, format!("contact flag {} is neither 0 nor 1", row[i])));
+            return Err(err(
+                i,
+                format!("contact flag {} is neither 0 nor 1", row[i]),
+            ));
         }
     }
     if row[2] <= 0.0 {
-        return Err(err(2, format!("base height {} m is not above the ground", row[2])));
+        return Err(err(
+            2,
+            format!("base height {} m is not above the ground", row[2]),
+        ));
     }
     let frame = Frame::from_row(row);
     for j in 0..NUM_JOINTS {

@@ -24,7 +24,12 @@ pub struct GaitCommand {
 impl GaitCommand {
     /// A named command.
     pub fn new(name: &str, vx_m_s: f64, vy_m_s: f64, wz_rad_s: f64) -> Self {
-        Self { name: name.to_string(), vx_m_s, vy_m_s, wz_rad_s }
+        Self {
+            name: name.to_string(),
+            vx_m_s,
+            vy_m_s,
+            wz_rad_s,
+        }
     }
 
     /// The command as (vx, vy, wz).
@@ -39,7 +44,11 @@ impl GaitCommand {
             return [vx * tau_s, vy * tau_s, 0.0];
         }
         let (s, c) = (w * tau_s).sin_cos();
-        [(s * vx - (1.0 - c) * vy) / w, ((1.0 - c) * vx + s * vy) / w, 0.0]
+        [
+            (s * vx - (1.0 - c) * vy) / w,
+            ((1.0 - c) * vx + s * vy) / w,
+            0.0,
+        ]
     }
 
     /// Heading of C(t + tau) relative to C(t).
@@ -49,7 +58,10 @@ impl GaitCommand {
 
     /// A point given in C(t) coordinates, expressed in C(t + tau) coordinates.
     pub fn to_later_frame(&self, point_m: V3, tau_s: f64) -> V3 {
-        mul_mtv(&rot_z(self.yaw_rad(tau_s)), sub(point_m, self.displacement_m(tau_s)))
+        mul_mtv(
+            &rot_z(self.yaw_rad(tau_s)),
+            sub(point_m, self.displacement_m(tau_s)),
+        )
     }
 }
 

@@ -48,13 +48,20 @@ impl MotionDataset {
                 total
             })
             .collect();
-        Self { clips, states, cumulative_weight }
+        Self {
+            clips,
+            states,
+            cumulative_weight,
+        }
     }
 
     /// Loads every `*.json` file of `dir` (sorted by name), refusing the first bad one.
     pub fn load_dir(dir: &Path) -> Result<Self, DatasetError> {
         let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
-            .map_err(|source| DatasetError::Dir { dir: dir.to_path_buf(), source })?
+            .map_err(|source| DatasetError::Dir {
+                dir: dir.to_path_buf(),
+                source,
+            })?
             .filter_map(|e| e.ok().map(|e| e.path()))
             .filter(|p| p.extension().is_some_and(|e| e == "json"))
             .collect();
@@ -62,7 +69,10 @@ impl MotionDataset {
         if paths.is_empty() {
             return Err(DatasetError::Empty(dir.to_path_buf()));
         }
-        let clips = paths.iter().map(|p| MotionClip::load(p)).collect::<Result<Vec<_>, _>>()?;
+        let clips = paths
+            .iter()
+            .map(|p| MotionClip::load(p))
+            .collect::<Result<Vec<_>, _>>()?;
         Ok(Self::new(clips))
     }
 
@@ -93,7 +103,10 @@ impl MotionDataset {
         (0..n)
             .map(|_| {
                 let u = rng.gen_range(0.0..total);
-                let c = self.cumulative_weight.partition_point(|&w| w <= u).min(self.clips.len() - 1);
+                let c = self
+                    .cumulative_weight
+                    .partition_point(|&w| w <= u)
+                    .min(self.clips.len() - 1);
                 let clip = &self.clips[c];
                 let last = match clip.loop_mode {
                     super::clip::LoopMode::Wrap => clip.frames.len(),

@@ -29,7 +29,12 @@ pub struct FootPlan {
 impl FootPlan {
     /// Feet for `command` on `schedule`, lifting `clearance_m` above the ground in swing.
     pub fn new(command: GaitCommand, schedule: TripodSchedule, clearance_m: f64) -> Self {
-        Self { command, schedule, clearance_m, nominal_m: nominal_feet_m() }
+        Self {
+            command,
+            schedule,
+            clearance_m,
+            nominal_m: nominal_feet_m(),
+        }
     }
 
     /// Foot sphere centre of `leg` at time `t_s`, in C(t) coordinates, and whether it is in
@@ -76,7 +81,11 @@ mod tests {
     use hexapod_core::robot::FOOT_RADIUS_M;
 
     fn plan(vx: f64, vy: f64, wz: f64) -> FootPlan {
-        FootPlan::new(GaitCommand::new("t", vx, vy, wz), TripodSchedule::new(30, 13).unwrap(), 0.08)
+        FootPlan::new(
+            GaitCommand::new("t", vx, vy, wz),
+            TripodSchedule::new(30, 13).unwrap(),
+            0.08,
+        )
     }
 
     #[test]
@@ -112,7 +121,10 @@ mod tests {
                 if a_st && b_st {
                     assert!((a[2] - FOOT_RADIUS_M as f64).abs() < 1e-12);
                     // The world point a, seen from the frame dt later, is b.
-                    assert!(norm(sub(cmd.to_later_frame(a, dt), b)) < 1e-9, "{leg:?} {t}");
+                    assert!(
+                        norm(sub(cmd.to_later_frame(a, dt), b)) < 1e-9,
+                        "{leg:?} {t}"
+                    );
                 }
             }
         }

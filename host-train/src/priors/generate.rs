@@ -23,7 +23,12 @@ pub struct GeneratorConfig {
 impl Default for GeneratorConfig {
     fn default() -> Self {
         // 0.6 s cycle, 0.26 s swing: duty factor 0.57 with short six-foot support phases.
-        Self { frames_per_cycle: 30, swing_frames: 13, swing_clearance_m: 0.08, qp: GaitQpConfig::default() }
+        Self {
+            frames_per_cycle: 30,
+            swing_frames: 13,
+            swing_clearance_m: 0.08,
+            qp: GaitQpConfig::default(),
+        }
     }
 }
 
@@ -114,11 +119,15 @@ pub fn generate_clip(
     let schedule = TripodSchedule::new(cfg.frames_per_cycle, cfg.swing_frames)?;
     let plan = FootPlan::new(command.clone(), schedule, cfg.swing_clearance_m);
     let start = std::time::Instant::now();
-    let sol = optimize_gait(&plan, &cfg.qp)
-        .map_err(|source| GenerateError::Optimize { clip: command.name.clone(), source })?;
+    let sol = optimize_gait(&plan, &cfg.qp).map_err(|source| GenerateError::Optimize {
+        clip: command.name.clone(),
+        source,
+    })?;
     let solve_time_s = start.elapsed().as_secs_f64();
-    let (frames, kinematics) = assemble(&plan, &sol)
-        .map_err(|source| GenerateError::Assemble { clip: command.name.clone(), source })?;
+    let (frames, kinematics) = assemble(&plan, &sol).map_err(|source| GenerateError::Assemble {
+        clip: command.name.clone(),
+        source,
+    })?;
     let report = ClipReport {
         name: command.name.clone(),
         command: command.as_array(),
@@ -133,7 +142,8 @@ pub fn generate_clip(
         solve_time_s,
     };
     let metadata = ClipMetadata {
-        generator: "hexapod priors: tripod schedule, single-rigid-body QP (clarabel), leg IK".into(),
+        generator: "hexapod priors: tripod schedule, single-rigid-body QP (clarabel), leg IK"
+            .into(),
         period_s: schedule.period_s(),
         duty_factor: schedule.duty_factor(),
         swing_clearance_m: cfg.swing_clearance_m,

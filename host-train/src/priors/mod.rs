@@ -6,20 +6,20 @@
 //! single-rigid-body base motion and friction-cone contact forces ([`optimize`], solved by
 //! clarabel through [`qp`]), joint angles by the legs' inverse kinematics, written as a
 //! JSON motion clip.
-pub mod body;
-pub mod command;
-pub mod feet;
-pub mod geom;
-pub mod optimize;
-pub mod qp;
-pub mod schedule;
 pub mod assemble;
+pub mod body;
 pub mod clip;
+pub mod command;
 pub mod dataset;
+pub mod feet;
 pub mod frame;
 pub mod generate;
+pub mod geom;
+pub mod optimize;
 pub mod plot;
+pub mod qp;
 pub mod replay;
+pub mod schedule;
 
 #[cfg(test)]
 mod tests;

@@ -167,8 +167,9 @@ pub fn optimize_gait(plan: &FootPlan, cfg: &GaitQpConfig) -> Result<GaitSolution
         last = Some((sol, force_index));
     }
     let (qp, force_index) = last.expect("at least one iteration");
-    let base: Vec<[f64; 6]> =
-        (0..n).map(|k| [0, 1, 2, 3, 4, 5].map(|j| qp.x[NX * k + j])).collect();
+    let base: Vec<[f64; 6]> = (0..n)
+        .map(|k| [0, 1, 2, 3, 4, 5].map(|j| qp.x[NX * k + j]))
+        .collect();
     let forces_n: Vec<[Option<V3>; NUM_LEGS]> = force_index
         .iter()
         .map(|row| row.map(|idx| idx.map(|i| [qp.x[i], qp.x[i + 1], qp.x[i + 2]])))
@@ -206,7 +207,10 @@ fn var(k: usize, j: usize) -> usize {
 /// `d/dt x_j` at k: (x_next - x_prev) / 2dt.
 fn d1(k: usize, j: usize, n: usize, dt: f64, coef: f64) -> Lin {
     let (p, q) = neighbours(k, n);
-    vec![(var(q, j), coef / (2.0 * dt)), (var(p, j), -coef / (2.0 * dt))]
+    vec![
+        (var(q, j), coef / (2.0 * dt)),
+        (var(p, j), -coef / (2.0 * dt)),
+    ]
 }
 
 /// `d2/dt2 x_j` at k: (x_next - 2 x_k + x_prev) / dt^2.
@@ -253,10 +257,18 @@ fn build(
     for k in 0..n {
         // Translation: m (dp'' + 2 w z x dp' - w^2 dp_xy) - sum f = -m w z x v + m g.
         let mut rows: [Lin; 3] = [
-            [d2(k, 0, n, dt, m), d1(k, 1, n, dt, -2.0 * m * w), vec![(var(k, 0), -m * w * w)]]
-                .concat(),
-            [d2(k, 1, n, dt, m), d1(k, 0, n, dt, 2.0 * m * w), vec![(var(k, 1), -m * w * w)]]
-                .concat(),
+            [
+                d2(k, 0, n, dt, m),
+                d1(k, 1, n, dt, -2.0 * m * w),
+                vec![(var(k, 0), -m * w * w)],
+            ]
+            .concat(),
+            [
+                d2(k, 1, n, dt, m),
+                d1(k, 0, n, dt, 2.0 * m * w),
+                vec![(var(k, 1), -m * w * w)],
+            ]
+            .concat(),
             d2(k, 2, n, dt, m),
         ];
         let rhs = [m * w * vy, -m * w * vx, -m * GRAVITY_M_S2];
@@ -268,7 +280,9 @@ fn build(
         ];
         let com = [com_offset[k][0], com_offset[k][1], h0 + com_offset[k][2]];
         for leg in 0..NUM_LEGS {
-            let Some(fi) = force_index[k][leg] else { continue };
+            let Some(fi) = force_index[k][leg] else {
+                continue;
+            };
             for (j, row) in rows.iter_mut().enumerate() {
                 row.push((fi + j, -1.0));
             }
@@ -288,11 +302,35 @@ fn build(
 
         // Costs on the base.
         for j in 0..3 {
-            qp.add_square(cfg.w_lin_acc, Affine { lin: d2(k, j, n, dt, 1.0), constant: 0.0 });
-            qp.add_square(cfg.w_ang_acc, Affine { lin: d2(k, 3 + j, n, dt, 1.0), constant: 0.0 });
-            qp.add_square(cfg.w_vel, Affine { lin: d1(k, j, n, dt, 1.0), constant: 0.0 });
+            qp.add_square(
+                cfg.w_lin_acc,
+                Affine {
+                    lin: d2(k, j, n, dt, 1.0),
+                    constant: 0.0,
+                },
+            );
+            qp.add_square(
+                cfg.w_ang_acc,
+                Affine {
+                    lin: d2(k, 3 + j, n, dt, 1.0),
+                    constant: 0.0,
+                },
+            );
+            qp.add_square(
+                cfg.w_vel,
+                Affine {
+                    lin: d1(k, j, n, dt, 1.0),
+                    constant: 0.0,
+                },
+            );
         }
-        qp.add_square(cfg.w_yaw_rate, Affine { lin: d1(k, 5, n, dt, 1.0), constant: 0.0 });
+        qp.add_square(
+            cfg.w_yaw_rate,
+            Affine {
+                lin: d1(k, 5, n, dt, 1.0),
+                constant: 0.0,
+            },
+        );
         qp.add_square(cfg.w_drift, Affine::var(var(k, 0), 1.0));
         qp.add_square(cfg.w_drift, Affine::var(var(k, 1), 1.0));
         qp.add_square(cfg.w_height, Affine::var(var(k, 2), 1.0));
@@ -308,7 +346,9 @@ fn build(
 
         // Forces: cones, bounds, effort, rate, soft switches.
         for leg in 0..NUM_LEGS {
-            let Some(fi) = force_index[k][leg] else { continue };
+            let Some(fi) = force_index[k][leg] else {
+                continue;
+            };
             qp.add_cone([
                 Affine::var(fi + 2, cfg.friction_mu),
                 Affine::var(fi, 1.0),
@@ -323,7 +363,10 @@ fn build(
                 if let Some(fp) = force_index[prev][leg] {
                     qp.add_square(
                         cfg.w_force_rate,
-                        Affine { lin: vec![(fi + j, 1.0), (fp + j, -1.0)], constant: 0.0 },
+                        Affine {
+                            lin: vec![(fi + j, 1.0), (fp + j, -1.0)],
+                            constant: 0.0,
+                        },
                     );
                 }
             }
@@ -402,14 +445,27 @@ mod tests {
         let body = RigidBody::hexapod();
         let n = sol.base.len() as f64;
         // Averaged over a periodic cycle, accelerations vanish: mean vertical force = m g.
-        let mean_fz: f64 =
-            sol.forces_n.iter().flatten().flatten().map(|f| f[2]).sum::<f64>() / n;
-        assert!((mean_fz - body.mass_kg * GRAVITY_M_S2).abs() < 1e-3, "{mean_fz}");
+        let mean_fz: f64 = sol
+            .forces_n
+            .iter()
+            .flatten()
+            .flatten()
+            .map(|f| f[2])
+            .sum::<f64>()
+            / n;
+        assert!(
+            (mean_fz - body.mass_kg * GRAVITY_M_S2).abs() < 1e-3,
+            "{mean_fz}"
+        );
         assert!(sol.qp.max_violation() < 1e-6, "{}", sol.qp.max_violation());
         assert!(sol.max_friction_violation_n < 1e-4);
         assert!(sol.max_force_residual_n < 1e-4);
         // Sequential iterations make the linearization error small against m g.
-        assert!(sol.max_moment_residual_nm < 0.5, "{}", sol.max_moment_residual_nm);
+        assert!(
+            sol.max_moment_residual_nm < 0.5,
+            "{}",
+            sol.max_moment_residual_nm
+        );
         // Swing feet carry no force.
         for (k, row) in sol.forces_n.iter().enumerate() {
             for leg in 0..NUM_LEGS {
@@ -423,7 +479,10 @@ mod tests {
         // Zero command: the base stays near nominal and the forces are symmetric enough.
         let sol = solve(0.0, 0.0, 0.0);
         for x in &sol.base {
-            assert!(x[2].abs() < 0.02 && x[3].abs() < 0.05 && x[4].abs() < 0.05, "{x:?}");
+            assert!(
+                x[2].abs() < 0.02 && x[3].abs() < 0.05 && x[4].abs() < 0.05,
+                "{x:?}"
+            );
         }
     }
 
@@ -432,9 +491,18 @@ mod tests {
         // Walking an arc: the mean horizontal force points to the centre, m v w.
         let sol = solve(0.3, 0.0, 0.5);
         let n = sol.base.len() as f64;
-        let mean_fy: f64 =
-            sol.forces_n.iter().flatten().flatten().map(|f| f[1]).sum::<f64>() / n;
+        let mean_fy: f64 = sol
+            .forces_n
+            .iter()
+            .flatten()
+            .flatten()
+            .map(|f| f[1])
+            .sum::<f64>()
+            / n;
         let expect = RigidBody::hexapod().mass_kg * 0.3 * 0.5;
-        assert!((mean_fy - expect).abs() < 0.1 * expect, "{mean_fy} vs {expect}");
+        assert!(
+            (mean_fy - expect).abs() < 0.1 * expect,
+            "{mean_fy} vs {expect}"
+        );
     }
 }

@@ -19,7 +19,10 @@ const CYCLES: usize = 2;
 
 /// Draws the three panels of `clip` into `path`.
 pub fn plot_clip(clip: &MotionClip, path: &Path) -> Result<(), PlotError> {
-    draw(clip, path).map_err(|message| PlotError { file: path.display().to_string(), message })
+    draw(clip, path).map_err(|message| PlotError {
+        file: path.display().to_string(),
+        message,
+    })
 }
 
 fn draw(clip: &MotionClip, path: &Path) -> Result<(), String> {
@@ -41,7 +44,10 @@ fn draw(clip: &MotionClip, path: &Path) -> Result<(), String> {
 
     // Gait diagram: a bar where a foot is on the ground.
     let mut chart = ChartBuilder::on(&top)
-        .caption("gait diagram: feet on the ground (blue tripod A, red tripod B)", ("sans-serif", 18))
+        .caption(
+            "gait diagram: feet on the ground (blue tripod A, red tripod B)",
+            ("sans-serif", 18),
+        )
         .margin(10)
         .x_label_area_size(30)
         .y_label_area_size(50)
@@ -69,29 +75,42 @@ fn draw(clip: &MotionClip, path: &Path) -> Result<(), String> {
             Tripod::B => RED,
         };
         let row = (NUM_LEGS - 1 - leg.index()) as f32;
-        let bars = (0..total).filter(|&i| frame(i).contacts[leg.index()]).map(|i| {
-            let t = i as f32 * dt;
-            Rectangle::new(
-                [(t - 0.5 * dt, row - 0.35), (t + 0.5 * dt, row + 0.35)],
-                color.mix(0.7).filled(),
-            )
-        });
+        let bars = (0..total)
+            .filter(|&i| frame(i).contacts[leg.index()])
+            .map(|i| {
+                let t = i as f32 * dt;
+                Rectangle::new(
+                    [(t - 0.5 * dt, row - 0.35), (t + 0.5 * dt, row + 0.35)],
+                    color.mix(0.7).filled(),
+                )
+            });
         chart.draw_series(bars).map_err(|x| e(&x))?;
     }
 
     // Joint trajectories of one leg of each tripod (RF in A, LF in B).
     let joints = [0usize, 1, 2, 9, 10, 11];
     let (lo, hi) = joints.iter().fold((f32::MAX, f32::MIN), |(lo, hi), &j| {
-        clip.frames.iter().fold((lo, hi), |(lo, hi), f| (lo.min(f.joint_pos_rad[j]), hi.max(f.joint_pos_rad[j])))
+        clip.frames.iter().fold((lo, hi), |(lo, hi), f| {
+            (lo.min(f.joint_pos_rad[j]), hi.max(f.joint_pos_rad[j]))
+        })
     });
     let mut chart = ChartBuilder::on(&middle)
-        .caption("joint positions (RF: tripod A, LF: tripod B)", ("sans-serif", 18))
+        .caption(
+            "joint positions (RF: tripod A, LF: tripod B)",
+            ("sans-serif", 18),
+        )
         .margin(10)
         .x_label_area_size(30)
         .y_label_area_size(50)
         .build_cartesian_2d(0f32..t_end, (lo - 0.1)..(hi + 0.1))
         .map_err(|x| e(&x))?;
-    chart.configure_mesh().light_line_style(WHITE).x_desc("time [s]").y_desc("rad").draw().map_err(|x| e(&x))?;
+    chart
+        .configure_mesh()
+        .light_line_style(WHITE)
+        .x_desc("time [s]")
+        .y_desc("rad")
+        .draw()
+        .map_err(|x| e(&x))?;
     let palette = [BLUE, GREEN, MAGENTA, RED, CYAN, BLACK];
     for (c, &j) in joints.iter().enumerate() {
         let color = palette[c];
@@ -102,7 +121,9 @@ fn draw(clip: &MotionClip, path: &Path) -> Result<(), String> {
             ))
             .map_err(|x| e(&x))?
             .label(JOINT_NAMES[j])
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+            });
     }
     chart
         .configure_series_labels()
@@ -114,27 +135,59 @@ fn draw(clip: &MotionClip, path: &Path) -> Result<(), String> {
 
     // Base velocity (base frame) against the command.
     let series: [(&str, RGBColor, Box<dyn Fn(usize) -> f32>, f32); 3] = [
-        ("vx [m/s]", BLUE, Box::new(|i| frame(i).lin_vel_base_m_s[0]), clip.command[0]),
-        ("vy [m/s]", GREEN, Box::new(|i| frame(i).lin_vel_base_m_s[1]), clip.command[1]),
-        ("wz [rad/s]", RED, Box::new(|i| frame(i).ang_vel_base_rad_s[2]), clip.command[2]),
+        (
+            "vx [m/s]",
+            BLUE,
+            Box::new(|i| frame(i).lin_vel_base_m_s[0]),
+            clip.command[0],
+        ),
+        (
+            "vy [m/s]",
+            GREEN,
+            Box::new(|i| frame(i).lin_vel_base_m_s[1]),
+            clip.command[1],
+        ),
+        (
+            "wz [rad/s]",
+            RED,
+            Box::new(|i| frame(i).ang_vel_base_rad_s[2]),
+            clip.command[2],
+        ),
     ];
-    let (lo, hi) = series.iter().fold((-0.1f32, 0.1f32), |(lo, hi), (_, _, f, c)| {
-        (0..n).fold((lo.min(*c), hi.max(*c)), |(lo, hi), i| (lo.min(f(i)), hi.max(f(i))))
-    });
+    let (lo, hi) = series
+        .iter()
+        .fold((-0.1f32, 0.1f32), |(lo, hi), (_, _, f, c)| {
+            (0..n).fold((lo.min(*c), hi.max(*c)), |(lo, hi), i| {
+                (lo.min(f(i)), hi.max(f(i)))
+            })
+        });
     let mut chart = ChartBuilder::on(&bottom)
-        .caption("base velocity (solid) and command (dashed)", ("sans-serif", 18))
+        .caption(
+            "base velocity (solid) and command (dashed)",
+            ("sans-serif", 18),
+        )
         .margin(10)
         .x_label_area_size(30)
         .y_label_area_size(50)
         .build_cartesian_2d(0f32..t_end, (lo - 0.05)..(hi + 0.05))
         .map_err(|x| e(&x))?;
-    chart.configure_mesh().light_line_style(WHITE).x_desc("time [s]").draw().map_err(|x| e(&x))?;
+    chart
+        .configure_mesh()
+        .light_line_style(WHITE)
+        .x_desc("time [s]")
+        .draw()
+        .map_err(|x| e(&x))?;
     for (name, color, f, command) in series {
         chart
-            .draw_series(LineSeries::new((0..total).map(|i| (i as f32 * dt, f(i))), color.stroke_width(2)))
+            .draw_series(LineSeries::new(
+                (0..total).map(|i| (i as f32 * dt, f(i))),
+                color.stroke_width(2),
+            ))
             .map_err(|x| e(&x))?
             .label(name)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+            });
         chart
             .draw_series(DashedLineSeries::new(
                 [(0.0, command), (t_end, command)],

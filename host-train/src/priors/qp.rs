@@ -7,9 +7,7 @@
 //! clarabel plumbing (CSC assembly, cone ordering, slack signs) in one place.
 
 use clarabel::algebra::CscMatrix;
-use clarabel::solver::{
-    DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
-};
+use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
 
 /// A linear expression: (variable index, coefficient) pairs.
 pub type Lin = Vec<(usize, f64)>;
@@ -26,7 +24,10 @@ pub struct Affine {
 impl Affine {
     /// `coef * x[var]`.
     pub fn var(var: usize, coef: f64) -> Self {
-        Self { lin: vec![(var, coef)], constant: 0.0 }
+        Self {
+            lin: vec![(var, coef)],
+            constant: 0.0,
+        }
     }
 
     fn eval(&self, x: &[f64]) -> f64 {
@@ -83,12 +84,17 @@ pub struct QpSolution {
 impl QpSolution {
     /// True when the solver reports a (possibly reduced-accuracy) optimum.
     pub fn is_solved(&self) -> bool {
-        matches!(self.status, SolverStatus::Solved | SolverStatus::AlmostSolved)
+        matches!(
+            self.status,
+            SolverStatus::Solved | SolverStatus::AlmostSolved
+        )
     }
 
     /// The worst of the three constraint violations.
     pub fn max_violation(&self) -> f64 {
-        self.max_equality_residual.max(self.max_inequality_violation).max(self.max_cone_violation)
+        self.max_equality_residual
+            .max(self.max_inequality_violation)
+            .max(self.max_cone_violation)
     }
 }
 
@@ -154,7 +160,10 @@ impl QpBuilder {
         for lin in lins {
             for &(index, _) in lin {
                 if index >= self.num_vars {
-                    return Err(QpError::VariableIndex { index, num_vars: self.num_vars });
+                    return Err(QpError::VariableIndex {
+                        index,
+                        num_vars: self.num_vars,
+                    });
                 }
             }
         }
@@ -218,9 +227,16 @@ impl QpBuilder {
         if !self.inequalities.is_empty() {
             cones.push(SupportedConeT::NonnegativeConeT(self.inequalities.len()));
         }
-        cones.extend(self.cones.iter().map(|_| SupportedConeT::SecondOrderConeT(3)));
+        cones.extend(
+            self.cones
+                .iter()
+                .map(|_| SupportedConeT::SecondOrderConeT(3)),
+        );
 
-        let settings = DefaultSettings { verbose: false, ..DefaultSettings::default() };
+        let settings = DefaultSettings {
+            verbose: false,
+            ..DefaultSettings::default()
+        };
         let mut solver = DefaultSolver::new(&p, &q, &a, &b, &cones, settings)
             .map_err(|e| QpError::Setup(format!("{e:?}")))?;
         solver.solve();
@@ -251,7 +267,11 @@ impl QpBuilder {
 
     /// The objective at `x`, constant terms included.
     pub fn objective(&self, x: &[f64]) -> f64 {
-        let squares: f64 = self.squares.iter().map(|(w, t)| w * t.eval(x).powi(2)).sum();
+        let squares: f64 = self
+            .squares
+            .iter()
+            .map(|(w, t)| w * t.eval(x).powi(2))
+            .sum();
         let linear: f64 = self.linear_cost.iter().map(|&(i, c)| c * x[i]).sum();
         squares + linear
     }
@@ -264,8 +284,11 @@ fn eval_lin(a: &Lin, x: &[f64]) -> f64 {
 fn upper_triangle(n: usize, i: Vec<usize>, j: Vec<usize>, v: Vec<f64>) -> CscMatrix<f64> {
     // Off-diagonal pairs (i, j) and (j, i) of a term both land on (min, max): summed by
     // the triplet constructor, which is what the symmetric product needs.
-    let (i, j): (Vec<usize>, Vec<usize>) =
-        i.iter().zip(&j).map(|(&a, &b)| (a.min(b), a.max(b))).unzip();
+    let (i, j): (Vec<usize>, Vec<usize>) = i
+        .iter()
+        .zip(&j)
+        .map(|(&a, &b)| (a.min(b), a.max(b)))
+        .unzip();
     CscMatrix::new_from_triplets(n, n, i, j, v)
 }
 
@@ -282,8 +305,20 @@ mod tests {
         // min (x - 1)^2 + (y - 2)^2  s.t.  x + y = 1  ->  (0, 1), objective 2.
         let mut qp = QpBuilder::new();
         let v = qp.add_vars(2);
-        qp.add_square(1.0, Affine { lin: vec![(v, 1.0)], constant: -1.0 });
-        qp.add_square(1.0, Affine { lin: vec![(v + 1, 1.0)], constant: -2.0 });
+        qp.add_square(
+            1.0,
+            Affine {
+                lin: vec![(v, 1.0)],
+                constant: -1.0,
+            },
+        );
+        qp.add_square(
+            1.0,
+            Affine {
+                lin: vec![(v + 1, 1.0)],
+                constant: -2.0,
+            },
+        );
         qp.add_equality(vec![(v, 1.0), (v + 1, 1.0)], 1.0);
         let s = qp.solve().unwrap();
         assert!(s.is_solved());
@@ -298,8 +333,20 @@ mod tests {
         // the objective (1 - y)^2 + (y - 3)^2 is minimal at y = 2, objective 2.
         let mut qp = QpBuilder::new();
         let v = qp.add_vars(2);
-        qp.add_square(1.0, Affine { lin: vec![(v, 1.0), (v + 1, -1.0)], constant: 0.0 });
-        qp.add_square(1.0, Affine { lin: vec![(v, 1.0), (v + 1, 1.0)], constant: -4.0 });
+        qp.add_square(
+            1.0,
+            Affine {
+                lin: vec![(v, 1.0), (v + 1, -1.0)],
+                constant: 0.0,
+            },
+        );
+        qp.add_square(
+            1.0,
+            Affine {
+                lin: vec![(v, 1.0), (v + 1, 1.0)],
+                constant: -4.0,
+            },
+        );
         qp.add_bounds(v, -10.0, 1.0);
         let s = qp.solve().unwrap();
         assert!(close(s.x[0], 1.0) && close(s.x[1], 2.0), "{:?}", s.x);
@@ -311,10 +358,25 @@ mod tests {
         // Nearest point to (3, 4) in the unit disc |(x, y)| <= 1: (0.6, 0.8), objective 16.
         let mut qp = QpBuilder::new();
         let v = qp.add_vars(2);
-        qp.add_square(1.0, Affine { lin: vec![(v, 1.0)], constant: -3.0 });
-        qp.add_square(1.0, Affine { lin: vec![(v + 1, 1.0)], constant: -4.0 });
+        qp.add_square(
+            1.0,
+            Affine {
+                lin: vec![(v, 1.0)],
+                constant: -3.0,
+            },
+        );
+        qp.add_square(
+            1.0,
+            Affine {
+                lin: vec![(v + 1, 1.0)],
+                constant: -4.0,
+            },
+        );
         qp.add_cone([
-            Affine { lin: vec![], constant: 1.0 },
+            Affine {
+                lin: vec![],
+                constant: 1.0,
+            },
             Affine::var(v, 1.0),
             Affine::var(v + 1, 1.0),
         ]);
@@ -340,6 +402,12 @@ mod tests {
         let mut qp = QpBuilder::new();
         qp.add_vars(1);
         qp.add_equality(vec![(3, 1.0)], 0.0);
-        assert!(matches!(qp.solve(), Err(QpError::VariableIndex { index: 3, num_vars: 1 })));
+        assert!(matches!(
+            qp.solve(),
+            Err(QpError::VariableIndex {
+                index: 3,
+                num_vars: 1
+            })
+        ));
     }
 }

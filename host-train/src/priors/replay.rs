@@ -17,7 +17,12 @@ use host_sim::robot::{RobotState, RobotWorld};
 /// A simulated robot that can replay joint trajectories.
 pub trait ReplayPlant {
     /// Places the robot at rest.
-    fn reset(&mut self, base_pos_world_m: [f32; 3], base_quat_xyzw: [f32; 4], q_rad: &[f32; NUM_JOINTS]);
+    fn reset(
+        &mut self,
+        base_pos_world_m: [f32; 3],
+        base_quat_xyzw: [f32; 4],
+        q_rad: &[f32; NUM_JOINTS],
+    );
     /// One physics step with the drives tracking `q_target_rad`.
     fn step(&mut self, q_target_rad: &[f32; NUM_JOINTS]);
     /// The robot's state (velocities in the world frame).
@@ -25,7 +30,12 @@ pub trait ReplayPlant {
 }
 
 impl ReplayPlant for RobotWorld {
-    fn reset(&mut self, base_pos_world_m: [f32; 3], base_quat_xyzw: [f32; 4], q_rad: &[f32; NUM_JOINTS]) {
+    fn reset(
+        &mut self,
+        base_pos_world_m: [f32; 3],
+        base_quat_xyzw: [f32; 4],
+        q_rad: &[f32; NUM_JOINTS],
+    ) {
         RobotWorld::reset(self, base_pos_world_m, base_quat_xyzw, q_rad);
     }
 
@@ -135,7 +145,13 @@ impl ReplayReport {
 pub fn sim_amp_state(s: &RobotState) -> [f32; AMP_STATE_DIM] {
     let lin_vel = rotate_inverse(s.base_quat_xyzw, s.base_lin_vel_world_m_s);
     let ang_vel = rotate_inverse(s.base_quat_xyzw, s.base_ang_vel_world_rad_s);
-    amp_state(&s.q_rad, &s.qdot_rad_s, lin_vel, ang_vel, s.base_pos_world_m[2])
+    amp_state(
+        &s.q_rad,
+        &s.qdot_rad_s,
+        lin_vel,
+        ang_vel,
+        s.base_pos_world_m[2],
+    )
 }
 
 /// `rel * magnitude`, or `zero_tol` when nothing is commanded.
@@ -148,10 +164,18 @@ fn tolerance(magnitude: f32, rel: f32, zero_tol: f32) -> f32 {
 }
 
 /// Replays `clip` on `plant` and checks it.
-pub fn replay_clip<P: ReplayPlant>(plant: &mut P, clip: &MotionClip, cfg: &ReplayConfig) -> ReplayReport {
+pub fn replay_clip<P: ReplayPlant>(
+    plant: &mut P,
+    clip: &MotionClip,
+    cfg: &ReplayConfig,
+) -> ReplayReport {
     let n = clip.frames.len();
     let first = &clip.frames[0];
-    plant.reset(first.base_pos_world_m, first.base_quat_xyzw, &first.joint_pos_rad);
+    plant.reset(
+        first.base_pos_world_m,
+        first.base_quat_xyzw,
+        &first.joint_pos_rad,
+    );
     let physics_dt_s = clip.frame_duration_s / DECIMATION as f32;
     let settle_steps = (cfg.settle_s / physics_dt_s).round() as usize;
     for _ in 0..settle_steps {
@@ -162,7 +186,10 @@ pub fn replay_clip<P: ReplayPlant>(plant: &mut P, clip: &MotionClip, cfg: &Repla
     let (mut max_tilt, mut min_height, mut sum_height) = (0.0f32, f32::MAX, 0.0f32);
     let (mut joint_sq, mut joint_count) = (0.0f32, 0usize);
     for k in 0..cfg.cycles * n {
-        let (a, b) = (&clip.frames[k % n].joint_pos_rad, &clip.frames[(k + 1) % n].joint_pos_rad);
+        let (a, b) = (
+            &clip.frames[k % n].joint_pos_rad,
+            &clip.frames[(k + 1) % n].joint_pos_rad,
+        );
         for sub in 0..DECIMATION {
             let u = (sub + 1) as f32 / DECIMATION as f32;
             let target: [f32; NUM_JOINTS] = std::array::from_fn(|j| a[j] + u * (b[j] - a[j]));
@@ -191,9 +218,17 @@ pub fn replay_clip<P: ReplayPlant>(plant: &mut P, clip: &MotionClip, cfg: &Repla
     let mean = sum_v.map(|x| x / count.max(1) as f32);
     let cmd = clip.command;
     let lin_error = (mean[0] - cmd[0]).hypot(mean[1] - cmd[1]);
-    let lin_tol = tolerance(cmd[0].hypot(cmd[1]), cfg.rel_tolerance, cfg.zero_lin_tolerance_m_s);
+    let lin_tol = tolerance(
+        cmd[0].hypot(cmd[1]),
+        cfg.rel_tolerance,
+        cfg.zero_lin_tolerance_m_s,
+    );
     let yaw_error = (mean[2] - cmd[2]).abs();
-    let yaw_tol = tolerance(cmd[2].abs(), cfg.rel_tolerance, cfg.zero_yaw_tolerance_rad_s);
+    let yaw_tol = tolerance(
+        cmd[2].abs(),
+        cfg.rel_tolerance,
+        cfg.zero_yaw_tolerance_rad_s,
+    );
     let clip_height = clip.frames.iter().map(|f| f.base_height_m()).sum::<f32>() / n as f32;
     ReplayReport {
         name: clip.name.clone(),

@@ -41,9 +41,15 @@ impl TripodSchedule {
         }
         let max = frames_per_cycle / 2;
         if swing_frames == 0 || swing_frames > max {
-            return Err(ScheduleError::SwingFrames { got: swing_frames, max });
+            return Err(ScheduleError::SwingFrames {
+                got: swing_frames,
+                max,
+            });
         }
-        Ok(Self { frames_per_cycle, swing_frames })
+        Ok(Self {
+            frames_per_cycle,
+            swing_frames,
+        })
     }
 
     /// Frames in one cycle.
@@ -114,9 +120,18 @@ mod tests {
 
     #[test]
     fn rejects_bad_schedules() {
-        assert_eq!(TripodSchedule::new(29, 10), Err(ScheduleError::FramesPerCycle(29)));
-        assert!(matches!(TripodSchedule::new(30, 16), Err(ScheduleError::SwingFrames { .. })));
-        assert!(matches!(TripodSchedule::new(30, 0), Err(ScheduleError::SwingFrames { .. })));
+        assert_eq!(
+            TripodSchedule::new(29, 10),
+            Err(ScheduleError::FramesPerCycle(29))
+        );
+        assert!(matches!(
+            TripodSchedule::new(30, 16),
+            Err(ScheduleError::SwingFrames { .. })
+        ));
+        assert!(matches!(
+            TripodSchedule::new(30, 0),
+            Err(ScheduleError::SwingFrames { .. })
+        ));
     }
 
     #[test]
@@ -128,7 +143,10 @@ mod tests {
             let c = s.contacts(k);
             // Legs of one tripod always share their contact state.
             for set in [TRIPOD_A, TRIPOD_B] {
-                assert!(set.iter().all(|l| c[l.index()] == c[set[0].index()]), "frame {k}");
+                assert!(
+                    set.iter().all(|l| c[l.index()] == c[set[0].index()]),
+                    "frame {k}"
+                );
             }
             let a = c[TRIPOD_A[0].index()];
             let b = c[TRIPOD_B[0].index()];

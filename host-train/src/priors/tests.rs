@@ -14,7 +14,12 @@ use serde_json::Value;
 use std::path::{Path, PathBuf};
 
 fn clip(name: &str, vx: f64, vy: f64, wz: f64) -> MotionClip {
-    generate_clip(&GaitCommand::new(name, vx, vy, wz), &GeneratorConfig::default()).unwrap().0
+    generate_clip(
+        &GaitCommand::new(name, vx, vy, wz),
+        &GeneratorConfig::default(),
+    )
+    .unwrap()
+    .0
 }
 
 /// Parses `clip` after `edit` changed its JSON.
@@ -27,7 +32,12 @@ fn parse_edited(clip: &MotionClip, edit: impl FnOnce(&mut Value)) -> Result<Moti
 fn assert_field_error(err: ClipError, frame: usize, field: &str) {
     let text = err.to_string();
     match err {
-        ClipError::Field { file, frame: f, field: name, .. } => {
+        ClipError::Field {
+            file,
+            frame: f,
+            field: name,
+            ..
+        } => {
             assert_eq!(file, PathBuf::from("bad.json"));
             assert_eq!((f, name.as_str()), (frame, field), "{text}");
             assert!(text.starts_with("bad.json: frame "), "{text}");
@@ -58,8 +68,20 @@ fn loader_refuses_wrong_frame_lengths() {
         v["Frames"][7].as_array_mut().unwrap().pop();
     })
     .unwrap_err();
-    assert!(matches!(err, ClipError::FrameLength { frame: 7, got: 72, .. }), "{err}");
-    assert!(err.to_string().contains("bad.json: frame 7: has 72 values, expected 73"));
+    assert!(
+        matches!(
+            err,
+            ClipError::FrameLength {
+                frame: 7,
+                got: 72,
+                ..
+            }
+        ),
+        "{err}"
+    );
+    assert!(err
+        .to_string()
+        .contains("bad.json: frame 7: has 72 values, expected 73"));
 }
 
 #[test]
@@ -68,8 +90,12 @@ fn loader_refuses_non_finite_values() {
     // JSON has no NaN: a huge number overflows f32 to infinity.
     let err = parse_edited(&c, |v| v["Frames"][3][9] = Value::from(1e300)).unwrap_err();
     assert_field_error(err, 3, "joint_pos[2]");
-    let err = MotionClip::parse(Path::new("bad.json"), &c.to_json().replacen("\"Frames\":[[", "\"Frames\":[[NaN,", 1))
-        .unwrap_err();
+    let err = MotionClip::parse(
+        Path::new("bad.json"),
+        &c.to_json()
+            .replacen("\"Frames\":[[", "\"Frames\":[[NaN,", 1),
+    )
+    .unwrap_err();
     assert!(matches!(err, ClipError::Json { .. }), "{err}");
 }
 
@@ -108,9 +134,27 @@ fn loader_refuses_inconsistent_frames() {
     let err = parse_edited(&c, |v| v["Frames"][9][7] = Value::from(2.0)).unwrap_err();
     assert_field_error(err, 9, "joint_pos[0]");
     let err = parse_edited(&c, |v| v["FrameDuration"] = Value::from(0.0167)).unwrap_err();
-    assert!(matches!(err, ClipError::Header { field: "FrameDuration", .. }), "{err}");
+    assert!(
+        matches!(
+            err,
+            ClipError::Header {
+                field: "FrameDuration",
+                ..
+            }
+        ),
+        "{err}"
+    );
     let err = parse_edited(&c, |v| v["MotionWeight"] = Value::from(-1.0)).unwrap_err();
-    assert!(matches!(err, ClipError::Header { field: "MotionWeight", .. }), "{err}");
+    assert!(
+        matches!(
+            err,
+            ClipError::Header {
+                field: "MotionWeight",
+                ..
+            }
+        ),
+        "{err}"
+    );
     let err = parse_edited(&c, |v| v["Extra"] = Value::from(1)).unwrap_err();
     assert!(matches!(err, ClipError::Json { .. }), "{err}");
 }
@@ -127,7 +171,12 @@ fn transitions_follow_the_weights_and_the_frame_order() {
     let mut from_a = 0;
     for (s, s_next) in &samples {
         let (clip, k) = (0..2)
-            .find_map(|c| data.amp_states(c).iter().position(|x| x == s).map(|k| (c, k)))
+            .find_map(|c| {
+                data.amp_states(c)
+                    .iter()
+                    .position(|x| x == s)
+                    .map(|k| (c, k))
+            })
             .expect("a state of the dataset");
         let n = data.clips()[clip].frames.len();
         assert_eq!(&data.amp_states(clip)[(k + 1) % n], s_next);
@@ -159,15 +208,23 @@ fn clip_and_simulator_compute_the_same_amp_state() {
 }
 
 fn robot() -> RobotWorld {
-    let model = host_sim::urdf_model::UrdfModel::load(&host_sim::urdf_model::default_urdf_path()).unwrap();
+    let model =
+        host_sim::urdf_model::UrdfModel::load(&host_sim::urdf_model::default_urdf_path()).unwrap();
     let ground = host_sim::terrain::Terrain::generate(&Default::default()).collider();
     RobotWorld::new(&model, ground, 1).unwrap()
 }
 
 #[test]
 fn replayed_clips_walk_at_the_command_in_the_simulator() {
-    let cfg = ReplayConfig { cycles: 4, ..Default::default() };
-    for c in [clip("fwd", 0.4, 0.0, 0.0), clip("left", 0.0, 0.2, 0.0), clip("turn", 0.0, 0.0, -0.5)] {
+    let cfg = ReplayConfig {
+        cycles: 4,
+        ..Default::default()
+    };
+    for c in [
+        clip("fwd", 0.4, 0.0, 0.0),
+        clip("left", 0.0, 0.2, 0.0),
+        clip("turn", 0.0, 0.0, -0.5),
+    ] {
         let r = replay_clip(&mut robot(), &c, &cfg);
         assert!(r.passed, "{}", r.summary());
     }
@@ -191,8 +248,14 @@ fn committed_dataset_is_complete_and_tripod() {
     assert!(data.duration_s() >= 8.6, "{} s", data.duration_s());
     let cmds: Vec<[f32; 3]> = data.clips().iter().map(|c| c.command).collect();
     let has = |f: &dyn Fn(&[f32; 3]) -> bool| cmds.iter().filter(|c| f(c)).count();
-    assert!(has(&|c| c[0] > 0.0 && c[1] == 0.0 && c[2] == 0.0) >= 2, "forward at two speeds");
-    assert!(has(&|c| c[0] < 0.0 && c[1] == 0.0 && c[2] == 0.0) >= 2, "backward at two speeds");
+    assert!(
+        has(&|c| c[0] > 0.0 && c[1] == 0.0 && c[2] == 0.0) >= 2,
+        "forward at two speeds"
+    );
+    assert!(
+        has(&|c| c[0] < 0.0 && c[1] == 0.0 && c[2] == 0.0) >= 2,
+        "backward at two speeds"
+    );
     assert!(has(&|c| c[0] == 0.0 && c[1] > 0.0) >= 1 && has(&|c| c[0] == 0.0 && c[1] < 0.0) >= 1);
     assert!(has(&|c| c[0] == 0.0 && c[2] > 0.0) >= 1 && has(&|c| c[0] == 0.0 && c[2] < 0.0) >= 1);
     assert!(has(&|c| c[0] != 0.0 && c[2] != 0.0) >= 1, "forward + turn");
@@ -200,10 +263,16 @@ fn committed_dataset_is_complete_and_tripod() {
     for c in data.clips() {
         let n = c.frames.len();
         for set in [TRIPOD_A, TRIPOD_B] {
-            let stance = c.frames.iter().filter(|f| f.contacts[set[0].index()]).count();
+            let stance = c
+                .frames
+                .iter()
+                .filter(|f| f.contacts[set[0].index()])
+                .count();
             assert!(stance as f64 / n as f64 >= 0.5, "{}: duty factor", c.name);
             for f in &c.frames {
-                assert!(set.iter().all(|l| f.contacts[l.index()] == f.contacts[set[0].index()]));
+                assert!(set
+                    .iter()
+                    .all(|l| f.contacts[l.index()] == f.contacts[set[0].index()]));
             }
         }
         // A and B lift off alternately, once each per cycle.

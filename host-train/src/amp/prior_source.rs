@@ -75,18 +75,74 @@ pub fn load_prior_source(
         PriorKind::Synthetic => Ok(Some(Box::new(SyntheticTripod::default()))),
         PriorKind::Dataset => {
             let dir = std::path::Path::new(&cfg.amp.priors_dir);
-            let clips = std::fs::read_dir(dir)
-                .map_err(|e| TrainError::Priors(format!("cannot read {}: {e} (run `hexapod priors` first)", dir.display())))?
-                .filter_map(|e| e.ok())
-                .filter(|e| e.path().extension().is_some_and(|x| x == "json"))
-                .count();
-            if clips == 0 {
-                return Err(TrainError::Priors(format!("no *.json motion clips in {}", dir.display())));
-            }
-            Err(TrainError::Priors(format!(
-                "{} holds {clips} clips, but this build cannot read the motion-clip format yet",
-                dir.display()
-            )))
+            let dataset = crate::priors::dataset::MotionDataset::load_dir(dir).map_err(|e| {
+                TrainError::Priors(format!("{e} (generate the clips with `hexapod priors`, or set amp.priors_dir)"))
+            })?;
+            Ok(Some(Box::new(dataset)))
         }
+    }
+}
+
+/// The trajectory-optimized tripod clips of `assets/priors` as a prior source.
+pub struct DatasetPriors {
+    /// The loaded, validated clips.
+    pub dataset: crate::priors::dataset::MotionDataset,
+}
+
+impl MotionPriorSource for DatasetPriors {
+    fn sample(&mut self, n: usize, rng: &mut dyn RngCore) -> (Vec<f32>, Vec<f32>) {
+        let pairs = self.dataset.sample_transitions(rng, n);
+        let mut s = Vec::with_capacity(n * AMP_STATE_DIM);
+        let mut sn = Vec::with_capacity(n * AMP_STATE_DIM);
+        for (a, b) in pairs {
+            s.extend_from_slice(&a);
+            sn.extend_from_slice(&b);
+        }
+        (s, sn)
+    }
+}
+
+impl MotionPriorSource for crate::priors::dataset::MotionDataset {
+    fn sample(&mut self, n: usize, rng: &mut dyn RngCore) -> (Vec<f32>, Vec<f32>) {
+        let mut s = Vec::with_capacity(n * AMP_STATE_DIM);
+        let mut sn = Vec::with_capacity(n * AMP_STATE_DIM);
+        for (a, b) in self.sample_transitions(rng, n) {
+            s.extend_from_slice(&a);
+            sn.extend_from_slice(&b);
+        }
+        (s, sn)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::{PriorKind, TrainConfig};
+    use rand::SeedableRng;
+
+    #[test]
+    fn shipped_dataset_loads_and_samples_consecutive_frames() {
+        let mut cfg = TrainConfig::default();
+        cfg.amp.prior_kind = PriorKind::Dataset;
+        cfg.amp.priors_dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/priors").into();
+        let mut src = load_prior_source(&cfg).unwrap().unwrap();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+        let (s, sn) = src.sample(32, &mut rng);
+        assert_eq!((s.len(), sn.len()), (32 * AMP_STATE_DIM, 32 * AMP_STATE_DIM));
+        // Consecutive frames: joint angles move by little (< 0.3 rad in 20 ms).
+        for (a, b) in s.chunks_exact(AMP_STATE_DIM).zip(sn.chunks_exact(AMP_STATE_DIM)) {
+            assert!(a[..18].iter().zip(&b[..18]).all(|(x, y)| (x - y).abs() < 0.3));
+        }
+    }
+
+    #[test]
+    fn missing_priors_are_a_clear_error() {
+        let mut cfg = TrainConfig::default();
+        cfg.amp.prior_kind = PriorKind::Dataset;
+        cfg.amp.priors_dir = "no/such/dir".into();
+        let err = load_prior_source(&cfg).err().expect("must fail").to_string();
+        assert!(err.contains("no/such/dir") && err.contains("hexapod priors"), "{err}");
+        cfg.rewards.style = false;
+        assert!(load_prior_source(&cfg).unwrap().is_none(), "no priors needed without style reward");
     }
 }

@@ -63,17 +63,11 @@ pub fn gait_diagram(path: &Path, time_s: &[f32], contact_masks: &[u8], leg_names
         .margin(8)
         .x_label_area_size(28)
         .y_label_area_size(45)
-        .build_cartesian_2d(0f32..t_end, 0f32..n as f32)?;
-    chart
-        .configure_mesh()
-        .x_desc("time [s]")
-        .y_labels(n)
-        .y_label_formatter(&|y| {
-            let i = (*y as usize).min(n - 1);
-            leg_names.get(n - 1 - i).map(|s| s.to_string()).unwrap_or_default()
-        })
-        .disable_y_mesh()
-        .draw()?;
+        .build_cartesian_2d(-0.06 * t_end..t_end, 0f32..n as f32)?;
+    chart.configure_mesh().x_desc("time [s]").y_labels(0).disable_y_mesh().draw()?;
+    chart.draw_series(leg_names.iter().enumerate().map(|(leg, name)| {
+        Text::new(name.to_uppercase(), (-0.05 * t_end, (n - 1 - leg) as f32 + 0.65), ("sans-serif", 16))
+    }))?;
     let dt = if time_s.len() > 1 { time_s[1] - time_s[0] } else { 0.02 };
     for (leg, _) in leg_names.iter().enumerate() {
         let row = (n - 1 - leg) as f32;

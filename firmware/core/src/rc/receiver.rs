@@ -11,7 +11,8 @@
 
 use super::crsf::{CrsfFrame, CrsfParser, CHANNEL_MAX, CHANNEL_MID, CHANNEL_MIN, NUM_CHANNELS};
 
-/// Mapping and failsafe parameters.
+/// Mapping and failsafe parameters. The full-stick speeds default to the command ranges
+/// the policy is trained on (`host-sim`'s default `commands`: 0.5 m/s, 0.3 m/s, 0.5 rad/s).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RcConfig {
@@ -32,9 +33,9 @@ pub struct RcConfig {
 impl Default for RcConfig {
     fn default() -> Self {
         Self {
-            vx_max_m_s: 1.0,
-            vy_max_m_s: 0.5,
-            wz_max_rad_s: 1.0,
+            vx_max_m_s: 0.5,
+            vy_max_m_s: 0.3,
+            wz_max_rad_s: 0.5,
             deadband: 0.05,
             timeout_us: 200_000,
             arm_threshold: 1400,
@@ -165,9 +166,10 @@ mod tests {
         );
         let s = rx.state(2_000);
         assert!(s.link_ok && s.arm);
-        assert!((s.command[0] - 1.0).abs() < 0.01, "{s:?}");
-        assert!((s.command[1] + 0.5).abs() < 0.01, "{s:?}");
-        assert!((s.command[2] - 1.0).abs() < 0.01, "{s:?}");
+        let c = RcConfig::default();
+        assert!((s.command[0] - c.vx_max_m_s).abs() < 0.01, "{s:?}");
+        assert!((s.command[1] + c.vy_max_m_s).abs() < 0.01, "{s:?}");
+        assert!((s.command[2] - c.wz_max_rad_s).abs() < 0.01, "{s:?}");
         rx.feed(
             &encode_rc_channels(&channels(
                 CHANNEL_MID + 20,

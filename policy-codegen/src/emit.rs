@@ -59,26 +59,20 @@ fn layer_statics(out: &mut String, name: &str, k: usize, l: &OwnedLayer) {
         l.weights.len()
     );
     words_literal(out, l.weights.iter().map(|w| format!("0x{w:08x}")));
-    let _ = write!(out, ";\nstatic {name}_{k}_BIAS: [i64; {}] = ", l.bias.len());
-    words_literal(out, l.bias.iter().map(|b| b.to_string()));
     let _ = write!(
         out,
-        ";\nstatic {name}_{k}_MULTIPLIER: [i32; {}] = ",
-        l.multiplier.len()
+        ";\nstatic {name}_{k}_CHANNELS: [ChannelQuant; {}] = ",
+        l.channels.len()
     );
-    words_literal(out, l.multiplier.iter().map(|m| m.to_string()));
-    let _ = write!(
+    words_literal(
         out,
-        ";\nstatic {name}_{k}_SHIFT: [u8; {}] = ",
-        l.shift.len()
+        l.channels.iter().map(|c| {
+            format!(
+                "ChannelQuant::new({}, {}, {}, {})",
+                c.bias, c.multiplier, c.shift, c.frac_bits
+            )
+        }),
     );
-    words_literal(out, l.shift.iter().map(|s| s.to_string()));
-    let _ = write!(
-        out,
-        ";\nstatic {name}_{k}_FRAC_BITS: [u8; {}] = ",
-        l.out_frac_bits.len()
-    );
-    words_literal(out, l.out_frac_bits.iter().map(|s| s.to_string()));
     out.push_str(";\n");
 }
 
@@ -86,7 +80,7 @@ fn net_file(p: &Provenance, net: &str, doc: &str, layers: &[OwnedLayer]) -> Stri
     let upper = net.to_uppercase();
     let mut s = header(p);
     let _ = writeln!(s, "\n//! {doc}\n");
-    s.push_str("#[allow(unused_imports)]\nuse hexapod_core::nn::{Activation, QuantizedLayer};\n\n");
+    s.push_str("#[allow(unused_imports)]\nuse hexapod_core::nn::{Activation, ChannelQuant, QuantizedLayer};\n\n");
     let _ = write!(
         s,
         "/// The layers, input first.\npub static LAYERS: [QuantizedLayer<'static>; {}] = [",
@@ -100,8 +94,8 @@ fn net_file(p: &Provenance, net: &str, doc: &str, layers: &[OwnedLayer]) -> Stri
         };
         let _ = write!(
             s,
-            "QuantizedLayer {{ in_dim: {}, out_dim: {}, weights: &{upper}_{k}_WEIGHTS, bias: &{upper}_{k}_BIAS, \
-             multiplier: &{upper}_{k}_MULTIPLIER, shift: &{upper}_{k}_SHIFT, out_frac_bits: &{upper}_{k}_FRAC_BITS, activation: Activation::{act} }},",
+            "QuantizedLayer {{ in_dim: {}, out_dim: {}, weights: &{upper}_{k}_WEIGHTS, \
+             channels: &{upper}_{k}_CHANNELS, activation: Activation::{act} }},",
             l.in_dim, l.out_dim
         );
     }

@@ -14,6 +14,7 @@ pub mod onnx;
 pub mod quantize;
 pub mod random;
 pub mod records;
+pub mod sim;
 pub mod size;
 
 /// Observations used for calibration (synthetic, seed 1).

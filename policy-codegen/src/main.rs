@@ -4,7 +4,7 @@
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 use policy_codegen::{
-    accuracy, bench, checkpoint, emit, onnx, quantize_default, random, records, size,
+    accuracy, bench, checkpoint, emit, onnx, quantize_default, random, records, sim, size,
 };
 use std::path::{Path, PathBuf};
 
@@ -25,6 +25,10 @@ enum Cmd {
         /// Seed.
         #[arg(long, default_value_t = 0)]
         seed: u64,
+        /// Init scale of the output layers (0.1: near-zero actions; 0.5-1: actions of a
+        /// trained policy's size).
+        #[arg(long, default_value_t = 0.1)]
+        output_gain: f32,
     },
     /// Generates the hexapod-policy crate from a checkpoint directory (or an ONNX MLP).
     Generate {
@@ -65,6 +69,25 @@ enum Cmd {
         #[arg(long, default_value_t = 1.5)]
         max_insns_per_mac: f32,
     },
+    /// Closed loop in host-sim: f32 vs fixed point on the same robots, and the largest
+    /// action difference on the observations the f32 run recorded.
+    SimCompare {
+        /// Checkpoint directory.
+        #[arg(long, default_value = "assets/policies/random-init")]
+        checkpoint: PathBuf,
+        /// Robots.
+        #[arg(long, default_value_t = 16)]
+        num_envs: usize,
+        /// Policy steps (50 per second).
+        #[arg(long, default_value_t = 700)]
+        steps: usize,
+        /// Environment seeds 1..=N (each run with both policies).
+        #[arg(long, default_value_t = 3)]
+        seeds: u64,
+        /// Also write the recorded observations (for `accuracy --observations`).
+        #[arg(long)]
+        record: Option<PathBuf>,
+    },
     /// Checks a firmware ELF's flash and RAM use against memory.x.
     Size {
         /// The ELF.
@@ -87,9 +110,14 @@ fn display_path(path: &Path) -> String {
 
 fn main() -> Result<()> {
     match Cli::parse().command {
-        Cmd::RandomCheckpoint { out, seed } => {
+        Cmd::RandomCheckpoint {
+            out,
+            seed,
+            output_gain,
+        } => {
             let spec = random::RandomSpec {
                 seed,
+                output_gain,
                 ..Default::default()
             };
             let policy = random::random_policy(&spec);
@@ -206,6 +234,54 @@ fn main() -> Result<()> {
                     "{:.3} instructions/MAC exceeds the budget {max_insns_per_mac}",
                     bench.smlald_per_mac
                 );
+            }
+        }
+        Cmd::SimCompare {
+            checkpoint: dir,
+            num_envs,
+            steps,
+            seeds,
+            record,
+        } => {
+            let ck = checkpoint::load(&dir)?;
+            let q = quantize_default(&ck.policy)?;
+            println!(
+                "closed loop in host-sim, {num_envs} robots x {steps} steps, seeds 1..={seeds}:"
+            );
+            println!("  seed  policy       mean reward  falls/robot  mean vx m/s  mean |a|");
+            let mut all = Vec::new();
+            let (mut rf, mut rx) = (Vec::new(), Vec::new());
+            for seed in 1..=seeds {
+                let (f, x, recs) = sim::compare_closed_loop(&ck.policy, &q, num_envs, steps, seed)?;
+                for (name, r) in [("f32", &f), ("fixed-point", &x)] {
+                    println!(
+                        "  {seed:>4}  {name:<11}  {:>11.5}  {:>11.3}  {:>11.4}  {:>8.4}",
+                        r.mean_reward, r.falls_per_robot, r.mean_vx_m_s, r.mean_abs_action
+                    );
+                }
+                rf.push(f.mean_reward);
+                rx.push(x.mean_reward);
+                all.extend(recs);
+            }
+            let stats = |v: &[f64]| {
+                let m = v.iter().sum::<f64>() / v.len().max(1) as f64;
+                let var =
+                    v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (v.len().max(2) - 1) as f64;
+                (m, var.sqrt())
+            };
+            let ((mf, sf), (mx, sx)) = (stats(&rf), stats(&rx));
+            println!(
+                "  mean reward over seeds: f32 {mf:.5} +- {sf:.5}, fixed point {mx:.5} +- {sx:.5}"
+            );
+            let r =
+                accuracy::compare(&ck.policy, &q, &all).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            println!(
+                "  on the {} observations recorded along the f32 runs: max |a_fixed - a_f32| = {:.3e}, mean {:.3e}, max |a_f32| = {:.3}",
+                r.count, r.max_abs_diff, r.mean_abs_diff, r.max_abs_action
+            );
+            if let Some(path) = record {
+                records::save(&path, &all)?;
+                println!("  recorded observations written to {}", path.display());
             }
         }
         Cmd::Size { elf, memory_x } => {

@@ -14,8 +14,9 @@
 use crate::checkpoint::{DenseF32, MlpF32, PolicyF32};
 use crate::records::ObsRecord;
 use hexapod_core::nn::elu::ELU_MAX_FRAC_BITS;
+use hexapod_core::nn::quant::{MAX_SHIFT, MIN_SHIFT};
 use hexapod_core::nn::{
-    actor_input_words, words, Activation, Mlp, QuantizedLayer, QuantizedPolicy,
+    actor_input_words, words, Activation, ChannelQuant, Mlp, QuantizedLayer, QuantizedPolicy,
 };
 use hexapod_core::obs::{ACTOR_OBS_DIM, HISTORY_DIM, OBS_CLIP};
 
@@ -55,14 +56,8 @@ pub struct OwnedLayer {
     pub out_dim: usize,
     /// Packed, interleaved weights.
     pub weights: Vec<u32>,
-    /// Bias in accumulator units.
-    pub bias: Vec<i64>,
-    /// Requantization multipliers.
-    pub multiplier: Vec<i32>,
-    /// Requantization shifts.
-    pub shift: Vec<u8>,
-    /// Output fractional bits per channel (padded like `bias`).
-    pub out_frac_bits: Vec<u8>,
+    /// Bias, requantization and output format per channel (padded to whole row pairs).
+    pub channels: Vec<ChannelQuant>,
     /// Nonlinearity.
     pub activation: Activation,
 }
@@ -74,10 +69,7 @@ impl OwnedLayer {
             in_dim: self.in_dim,
             out_dim: self.out_dim,
             weights: &self.weights,
-            bias: &self.bias,
-            multiplier: &self.multiplier,
-            shift: &self.shift,
-            out_frac_bits: &self.out_frac_bits,
+            channels: &self.channels,
             activation: self.activation,
         }
     }
@@ -213,9 +205,7 @@ fn quantize_layer(
     let in_words = words(in_dim);
     let rows = 2 * words(layer.out_dim);
     let mut weights = vec![0u32; rows * in_words];
-    let mut bias = vec![0i64; rows];
-    let mut multiplier = vec![0i32; rows];
-    let mut shift = vec![1u8; rows];
+    let mut channels = vec![ChannelQuant::PAD; rows];
     for r in 0..layer.out_dim {
         let w_row = &layer.weight[r * layer.in_dim..(r + 1) * layer.in_dim];
         // Fold normalization and input scale.
@@ -247,9 +237,9 @@ fn quantize_layer(
         let m_bits = (62 - bound_bits).min(31);
         let real = w_scale * pow2(out_frac_bits[r] as i32);
         let exponent = real.log2().floor() as i32;
-        let sh = (m_bits - 1 - exponent).min(62);
+        let sh = (m_bits - 1 - exponent).min(MAX_SHIFT as i32);
         let m = (real * pow2(sh)).round();
-        if sh < 1 || m_bits < 8 || m >= pow2(31) {
+        if sh < MIN_SHIFT as i32 || m_bits < 8 || m >= pow2(31) {
             return Err(QuantError::Scale {
                 net,
                 layer: index,
@@ -262,20 +252,13 @@ fn quantize_layer(
             let hi = pair.get(1).copied().unwrap_or(0);
             weights[(r / 2) * 2 * in_words + 2 * k + (r % 2)] = hexapod_core::nn::pack(lo, hi);
         }
-        bias[r] = bias_q;
-        multiplier[r] = m as i32;
-        shift[r] = sh as u8;
+        channels[r] = ChannelQuant::new(bias_q, m as i32, sh as u8, out_frac_bits[r]);
     }
-    let mut frac = out_frac_bits.to_vec();
-    frac.resize(rows, 0);
     Ok(OwnedLayer {
         in_dim,
         out_dim: layer.out_dim,
         weights,
-        bias,
-        multiplier,
-        shift,
-        out_frac_bits: frac,
+        channels,
         activation,
     })
 }
@@ -380,8 +363,8 @@ pub fn quantize_policy(policy: &PolicyF32, cal: &Calibration) -> Result<OwnedPol
     let segment_scale = |layers: &[OwnedLayer], i: usize| {
         layers
             .last()
-            .and_then(|l| l.out_frac_bits.get(i))
-            .map_or(1.0, |&f| pow2(f as i32))
+            .and_then(|l| l.channels.get(i))
+            .map_or(1.0, |c| pow2(c.frac_bits as i32))
     };
     for i in 0..est_dim {
         columns[2 * est_w + i] = Column {

@@ -206,3 +206,27 @@ fn onnx_mlp_imports_and_quantizes() {
         .to_string();
     assert!(err.contains("Tanh"), "{err}");
 }
+
+#[test]
+fn closed_loop_in_the_simulator_matches_f32() {
+    let spec = RandomSpec {
+        seed: 5,
+        output_gain: 0.5,
+        ..Default::default()
+    };
+    let policy = random_policy(&spec);
+    let q = quantize_default(&policy).unwrap();
+    let (f, x, recorded) = policy_codegen::sim::compare_closed_loop(&policy, &q, 2, 40, 3).unwrap();
+    assert_eq!(recorded.len(), 80);
+    let report = compare(&policy, &q, &recorded).unwrap();
+    assert!(report.max_abs_diff <= 2e-3, "{report:?}");
+    assert!(f.mean_abs_action > 0.05, "{f:?}");
+    assert!(
+        (f.mean_abs_action - x.mean_abs_action).abs() < 0.02 * f.mean_abs_action,
+        "{f:?} {x:?}"
+    );
+    // Rewards of an untrained policy nearly cancel (task terms vs penalties): compare the
+    // motion instead.
+    assert!((f.mean_vx_m_s - x.mean_vx_m_s).abs() < 0.01, "{f:?} {x:?}");
+    assert_eq!(f.falls_per_robot, x.falls_per_robot, "{f:?} {x:?}");
+}

@@ -4,7 +4,7 @@
 //! Estimator: history -> scaled base linear velocity.
 
 #[allow(unused_imports)]
-use hexapod_core::nn::{Activation, QuantizedLayer};
+use hexapod_core::nn::{Activation, ChannelQuant, QuantizedLayer};
 
 /// The layers, input first.
 pub static LAYERS: [QuantizedLayer<'static>; 3] = [
@@ -12,30 +12,21 @@ pub static LAYERS: [QuantizedLayer<'static>; 3] = [
         in_dim: 210,
         out_dim: 64,
         weights: &ESTIMATOR_0_WEIGHTS,
-        bias: &ESTIMATOR_0_BIAS,
-        multiplier: &ESTIMATOR_0_MULTIPLIER,
-        shift: &ESTIMATOR_0_SHIFT,
-        out_frac_bits: &ESTIMATOR_0_FRAC_BITS,
+        channels: &ESTIMATOR_0_CHANNELS,
         activation: Activation::Elu,
     },
     QuantizedLayer {
         in_dim: 64,
         out_dim: 32,
         weights: &ESTIMATOR_1_WEIGHTS,
-        bias: &ESTIMATOR_1_BIAS,
-        multiplier: &ESTIMATOR_1_MULTIPLIER,
-        shift: &ESTIMATOR_1_SHIFT,
-        out_frac_bits: &ESTIMATOR_1_FRAC_BITS,
+        channels: &ESTIMATOR_1_CHANNELS,
         activation: Activation::Elu,
     },
     QuantizedLayer {
         in_dim: 32,
         out_dim: 3,
         weights: &ESTIMATOR_2_WEIGHTS,
-        bias: &ESTIMATOR_2_BIAS,
-        multiplier: &ESTIMATOR_2_MULTIPLIER,
-        shift: &ESTIMATOR_2_SHIFT,
-        out_frac_bits: &ESTIMATOR_2_FRAC_BITS,
+        channels: &ESTIMATOR_2_CHANNELS,
         activation: Activation::Linear,
     },
 ];
@@ -882,29 +873,71 @@ static ESTIMATOR_0_WEIGHTS: [u32; 6720] = [
     0x1ba1cfd3, 0xd864e4c6, 0xdef82272, 0xed4f187a, 0xfb34d965, 0xeaeb1649, 0xf5120417, 0xc2bcd297,
     0x723cba37, 0x0af116ba, 0xb3d9573e, 0xd9e00714, 0x1b5f07ba, 0x231ed1a0, 0xf5aa0412, 0xe6f8045c,
 ];
-static ESTIMATOR_0_BIAS: [i64; 64] = [
-    0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
-    0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
-];
-static ESTIMATOR_0_MULTIPLIER: [i32; 64] = [
-    37961058, 35077322, 62991066, 38802160, 41487654, 47434672, 37356128, 39762021, 38858686,
-    39820175, 43421021, 37613136, 40383120, 39818767, 44542135, 34049619, 36581272, 34513485,
-    37323163, 41099714, 40314994, 42760897, 45876232, 38971405, 38371119, 38121567, 41758514,
-    36782847, 40305154, 34436379, 37695022, 34296151, 17929529, 38866734, 35400088, 41303952,
-    40105820, 39694099, 35939117, 41082702, 42311751, 39452368, 43025061, 43609675, 35630327,
-    36300284, 40845607, 40189474, 45375441, 37102624, 35435605, 35156197, 42843423, 43130356,
-    34220132, 35600874, 35304453, 38949637, 16796927, 41389219, 32938553, 46790196, 43863739,
-    38810000,
-];
-static ESTIMATOR_0_SHIFT: [u8; 64] = [
-    40, 40, 41, 40, 40, 40, 39, 40, 39, 40, 40, 39, 39, 40, 40, 40, 40, 40, 39, 40, 40, 39, 40, 40,
-    39, 39, 40, 40, 39, 40, 40, 40, 39, 39, 39, 39, 40, 39, 40, 39, 40, 39, 40, 40, 40, 40, 40, 39,
-    40, 39, 40, 40, 40, 41, 40, 39, 39, 40, 39, 40, 40, 40, 40, 39,
-];
-static ESTIMATOR_0_FRAC_BITS: [u8; 64] = [
-    13, 13, 13, 13, 13, 13, 14, 13, 14, 13, 13, 14, 14, 13, 13, 13, 13, 13, 14, 13, 13, 14, 13, 13,
-    14, 14, 13, 13, 14, 13, 13, 13, 13, 14, 14, 14, 13, 14, 13, 14, 13, 14, 13, 13, 13, 13, 13, 14,
-    13, 14, 13, 13, 13, 12, 13, 14, 14, 13, 13, 13, 13, 13, 13, 14,
+static ESTIMATOR_0_CHANNELS: [ChannelQuant; 64] = [
+    ChannelQuant::new(0, 37961058, 40, 13),
+    ChannelQuant::new(0, 35077322, 40, 13),
+    ChannelQuant::new(0, 62991066, 41, 13),
+    ChannelQuant::new(0, 38802160, 40, 13),
+    ChannelQuant::new(0, 41487654, 40, 13),
+    ChannelQuant::new(0, 47434672, 40, 13),
+    ChannelQuant::new(0, 37356128, 39, 14),
+    ChannelQuant::new(0, 39762021, 40, 13),
+    ChannelQuant::new(0, 38858686, 39, 14),
+    ChannelQuant::new(0, 39820175, 40, 13),
+    ChannelQuant::new(0, 43421021, 40, 13),
+    ChannelQuant::new(0, 37613136, 39, 14),
+    ChannelQuant::new(0, 40383120, 39, 14),
+    ChannelQuant::new(0, 39818767, 40, 13),
+    ChannelQuant::new(0, 44542135, 40, 13),
+    ChannelQuant::new(0, 34049619, 40, 13),
+    ChannelQuant::new(0, 36581272, 40, 13),
+    ChannelQuant::new(0, 34513485, 40, 13),
+    ChannelQuant::new(0, 37323163, 39, 14),
+    ChannelQuant::new(0, 41099714, 40, 13),
+    ChannelQuant::new(0, 40314994, 40, 13),
+    ChannelQuant::new(0, 42760897, 39, 14),
+    ChannelQuant::new(0, 45876232, 40, 13),
+    ChannelQuant::new(0, 38971405, 40, 13),
+    ChannelQuant::new(0, 38371119, 39, 14),
+    ChannelQuant::new(0, 38121567, 39, 14),
+    ChannelQuant::new(0, 41758514, 40, 13),
+    ChannelQuant::new(0, 36782847, 40, 13),
+    ChannelQuant::new(0, 40305154, 39, 14),
+    ChannelQuant::new(0, 34436379, 40, 13),
+    ChannelQuant::new(0, 37695022, 40, 13),
+    ChannelQuant::new(0, 34296151, 40, 13),
+    ChannelQuant::new(0, 17929529, 39, 13),
+    ChannelQuant::new(0, 38866734, 39, 14),
+    ChannelQuant::new(0, 35400088, 39, 14),
+    ChannelQuant::new(0, 41303952, 39, 14),
+    ChannelQuant::new(0, 40105820, 40, 13),
+    ChannelQuant::new(0, 39694099, 39, 14),
+    ChannelQuant::new(0, 35939117, 40, 13),
+    ChannelQuant::new(0, 41082702, 39, 14),
+    ChannelQuant::new(0, 42311751, 40, 13),
+    ChannelQuant::new(0, 39452368, 39, 14),
+    ChannelQuant::new(0, 43025061, 40, 13),
+    ChannelQuant::new(0, 43609675, 40, 13),
+    ChannelQuant::new(0, 35630327, 40, 13),
+    ChannelQuant::new(0, 36300284, 40, 13),
+    ChannelQuant::new(0, 40845607, 40, 13),
+    ChannelQuant::new(0, 40189474, 39, 14),
+    ChannelQuant::new(0, 45375441, 40, 13),
+    ChannelQuant::new(0, 37102624, 39, 14),
+    ChannelQuant::new(0, 35435605, 40, 13),
+    ChannelQuant::new(0, 35156197, 40, 13),
+    ChannelQuant::new(0, 42843423, 40, 13),
+    ChannelQuant::new(0, 43130356, 41, 12),
+    ChannelQuant::new(0, 34220132, 40, 13),
+    ChannelQuant::new(0, 35600874, 39, 14),
+    ChannelQuant::new(0, 35304453, 39, 14),
+    ChannelQuant::new(0, 38949637, 40, 13),
+    ChannelQuant::new(0, 16796927, 39, 13),
+    ChannelQuant::new(0, 41389219, 40, 13),
+    ChannelQuant::new(0, 32938553, 40, 13),
+    ChannelQuant::new(0, 46790196, 40, 13),
+    ChannelQuant::new(0, 43863739, 40, 13),
+    ChannelQuant::new(0, 38810000, 39, 14),
 ];
 static ESTIMATOR_1_WEIGHTS: [u32; 1024] = [
     0x53189bf7, 0xe3fefaab, 0x2e4fbb3f, 0x1b7aca82, 0x2c144a31, 0x2f004598, 0x3e2a1669, 0x459ce24a,
@@ -1036,22 +1069,39 @@ static ESTIMATOR_1_WEIGHTS: [u32; 1024] = [
     0xf9740ecd, 0x002cdfd3, 0x078d1eba, 0x1303dd51, 0x3b6a7fff, 0x8001c345, 0x09d4089e, 0xf86c2a68,
     0xfb0414c7, 0x02ba05d0, 0xcd6cef52, 0xc268f351, 0x1d994b02, 0xe74102c2, 0xfcc35580, 0xfd89f100,
 ];
-static ESTIMATOR_1_BIAS: [i64; 32] = [
-    0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
-];
-static ESTIMATOR_1_MULTIPLIER: [i32; 32] = [
-    100699569, 116557541, 108634227, 114635786, 133881686, 128709072, 139593620, 192566565,
-    111666216, 142971595, 99401113, 125210485, 104211076, 78121160, 128375902, 152054480,
-    108940989, 110959970, 163663187, 76106827, 265284016, 113699934, 170045285, 105586230,
-    145891460, 141619570, 294118992, 112948119, 108234183, 113438230, 127635511, 187131967,
-];
-static ESTIMATOR_1_SHIFT: [u8; 32] = [
-    43, 43, 43, 42, 43, 44, 43, 43, 43, 43, 43, 43, 43, 42, 43, 42, 43, 43, 43, 42, 44, 43, 43, 43,
-    43, 42, 43, 43, 43, 43, 43, 43,
-];
-static ESTIMATOR_1_FRAC_BITS: [u8; 32] = [
-    13, 13, 13, 14, 13, 12, 13, 13, 13, 13, 13, 13, 13, 14, 13, 14, 13, 13, 13, 13, 13, 13, 13, 13,
-    13, 14, 13, 13, 13, 13, 13, 13,
+static ESTIMATOR_1_CHANNELS: [ChannelQuant; 32] = [
+    ChannelQuant::new(0, 100699569, 43, 13),
+    ChannelQuant::new(0, 116557541, 43, 13),
+    ChannelQuant::new(0, 108634227, 43, 13),
+    ChannelQuant::new(0, 114635786, 42, 14),
+    ChannelQuant::new(0, 133881686, 43, 13),
+    ChannelQuant::new(0, 128709072, 44, 12),
+    ChannelQuant::new(0, 139593620, 43, 13),
+    ChannelQuant::new(0, 192566565, 43, 13),
+    ChannelQuant::new(0, 111666216, 43, 13),
+    ChannelQuant::new(0, 142971595, 43, 13),
+    ChannelQuant::new(0, 99401113, 43, 13),
+    ChannelQuant::new(0, 125210485, 43, 13),
+    ChannelQuant::new(0, 104211076, 43, 13),
+    ChannelQuant::new(0, 78121160, 42, 14),
+    ChannelQuant::new(0, 128375902, 43, 13),
+    ChannelQuant::new(0, 152054480, 42, 14),
+    ChannelQuant::new(0, 108940989, 43, 13),
+    ChannelQuant::new(0, 110959970, 43, 13),
+    ChannelQuant::new(0, 163663187, 43, 13),
+    ChannelQuant::new(0, 76106827, 42, 13),
+    ChannelQuant::new(0, 265284016, 44, 13),
+    ChannelQuant::new(0, 113699934, 43, 13),
+    ChannelQuant::new(0, 170045285, 43, 13),
+    ChannelQuant::new(0, 105586230, 43, 13),
+    ChannelQuant::new(0, 145891460, 43, 13),
+    ChannelQuant::new(0, 141619570, 42, 14),
+    ChannelQuant::new(0, 294118992, 43, 13),
+    ChannelQuant::new(0, 112948119, 43, 13),
+    ChannelQuant::new(0, 108234183, 43, 13),
+    ChannelQuant::new(0, 113438230, 43, 13),
+    ChannelQuant::new(0, 127635511, 43, 13),
+    ChannelQuant::new(0, 187131967, 43, 13),
 ];
 static ESTIMATOR_2_WEIGHTS: [u32; 64] = [
     0xf2220359, 0xa073c252, 0x146a1512, 0x0e6123ab, 0x1e3b28dc, 0x05f23460, 0x2aee2776, 0x3ac92412,
@@ -1063,7 +1113,9 @@ static ESTIMATOR_2_WEIGHTS: [u32; 64] = [
     0xb7f469d8, 0x00000000, 0x6b083a90, 0x00000000, 0xc4c5d4db, 0x00000000, 0xa157c2fb, 0x00000000,
     0xb71df2c0, 0x00000000, 0x4893fa04, 0x00000000, 0x359cfb55, 0x00000000, 0xc4fe3220, 0x00000000,
 ];
-static ESTIMATOR_2_BIAS: [i64; 4] = [0, 0, 0, 0];
-static ESTIMATOR_2_MULTIPLIER: [i32; 4] = [253933717, 200950709, 196445643, 0];
-static ESTIMATOR_2_SHIFT: [u8; 4] = [45, 45, 45, 1];
-static ESTIMATOR_2_FRAC_BITS: [u8; 4] = [15, 15, 15, 0];
+static ESTIMATOR_2_CHANNELS: [ChannelQuant; 4] = [
+    ChannelQuant::new(0, 253933717, 45, 15),
+    ChannelQuant::new(0, 200950709, 45, 15),
+    ChannelQuant::new(0, 196445643, 45, 15),
+    ChannelQuant::new(0, 0, 33, 0),
+];

@@ -53,43 +53,39 @@ const fn elu_table() -> [i16; ELU_TABLE_INTERVALS + 1] {
     table
 }
 
-/// ELU of a negative value `y` given in Q`frac_bits` (any magnitude), result in the same
-/// format. `frac_bits` must be at most [`ELU_MAX_FRAC_BITS`] (checked by the layer).
+/// ELU of a negative value `y` given in Q`frac_bits`, result in the same format.
+/// `frac_bits` must be at most [`ELU_MAX_FRAC_BITS`] (checked by the layer).
 #[inline]
-pub fn elu_negative(y: i64, frac_bits: u8) -> i16 {
+pub fn elu_negative(y: i32, frac_bits: u8) -> i16 {
     let frac_bits = frac_bits.min(ELU_MAX_FRAC_BITS) as u32;
-    // u = -y in Q(frac_bits); the table index is u * 64 / 2^frac_bits.
+    // u = -y in Q(frac_bits); the table position is u * 64 / 2^frac_bits.
     let u = y.unsigned_abs();
     let (index, frac, frac_len) = if frac_bits >= ELU_STEPS_PER_UNIT_LOG2 {
         let frac_len = frac_bits - ELU_STEPS_PER_UNIT_LOG2;
         (
             u >> frac_len,
-            (u & ((1u64 << frac_len) - 1)) as i32,
+            (u & ((1u32 << frac_len) - 1)) as i32,
             frac_len,
         )
     } else {
         let up = ELU_STEPS_PER_UNIT_LOG2 - frac_bits;
-        let index = if u > (u64::MAX >> up) {
-            u64::MAX
+        let index = if u > (u32::MAX >> up) {
+            u32::MAX
         } else {
             u << up
         };
         (index, 0, 0)
     };
-    let value_q15: i32 = if index >= ELU_TABLE_INTERVALS as u64 {
-        ELU_TABLE_Q15[ELU_TABLE_INTERVALS] as i32
-    } else {
-        let i = index as usize;
-        let (a, b) = match (ELU_TABLE_Q15.get(i), ELU_TABLE_Q15.get(i + 1)) {
-            (Some(&a), Some(&b)) => (a as i32, b as i32),
-            _ => (-32768, -32768),
-        };
-        let delta = if frac_len == 0 {
-            0
-        } else {
-            ((b - a) * frac + (1 << (frac_len - 1))) >> frac_len
-        };
-        a + delta
+    let value_q15: i32 = match (
+        ELU_TABLE_Q15.get(index as usize),
+        ELU_TABLE_Q15.get((index as usize).saturating_add(1)),
+    ) {
+        (Some(&a), Some(&b)) if frac_len > 0 => {
+            let (a, b) = (a as i32, b as i32);
+            a + (((b - a) * frac + (1 << (frac_len - 1))) >> frac_len)
+        }
+        (Some(&a), _) => a as i32,
+        _ => ELU_TABLE_Q15[ELU_TABLE_INTERVALS] as i32,
     };
     // Q15 -> Q(frac_bits), rounding to nearest.
     let down = 15 - frac_bits;
@@ -118,7 +114,7 @@ mod tests {
             let lsb = 1.0 / (1u64 << frac_bits) as f64;
             for step in 1..4000 {
                 let x = -(step as f64) * 0.00731;
-                let y = (x / lsb).round() as i64;
+                let y = (x / lsb).round() as i32;
                 let got = elu_negative(y, frac_bits) as f64 * lsb;
                 let want = (y as f64 * lsb).exp() - 1.0;
                 assert!(
@@ -127,7 +123,7 @@ mod tests {
                 );
             }
             // Far below the table: -1 within a half lsb.
-            let got = elu_negative(-(1i64 << 40), frac_bits) as f64 * lsb;
+            let got = elu_negative(i32::MIN, frac_bits) as f64 * lsb;
             assert!((got + 1.0).abs() <= 0.5 * lsb + 1e-6);
         }
     }

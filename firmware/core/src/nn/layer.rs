@@ -2,7 +2,7 @@
 
 use super::elu::{elu_negative, ELU_MAX_FRAC_BITS};
 use super::kernel::{dot_row_pair, dot_row_pair_portable};
-use super::quant::{requantize, saturate_i16};
+use super::quant::{requantize, saturate_i16, MAX_SHIFT, MIN_SHIFT};
 use super::{pack, words, NnError};
 
 /// The nonlinearity after a layer.
@@ -16,13 +16,41 @@ pub enum Activation {
     Relu,
 }
 
+/// Per-output-channel constants: bias and requantization.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ChannelQuant {
+    /// Bias in accumulator units.
+    pub bias: i64,
+    /// Requantization multiplier.
+    pub multiplier: i32,
+    /// Requantization right shift, `MIN_SHIFT..=MAX_SHIFT` (33..=62).
+    pub shift: u8,
+    /// Fractional bits of the channel's output.
+    pub frac_bits: u8,
+}
+
+impl ChannelQuant {
+    /// A channel (short constructor for generated tables).
+    pub const fn new(bias: i64, multiplier: i32, shift: u8, frac_bits: u8) -> Self {
+        Self {
+            bias,
+            multiplier,
+            shift,
+            frac_bits,
+        }
+    }
+
+    /// A padding channel (always 0).
+    pub const PAD: Self = Self::new(0, 0, MIN_SHIFT, 0);
+}
+
 /// A dense layer in the packed, row-pair-interleaved layout of [`crate::nn`].
 ///
-/// Output channel `c` is `q_c = round((acc_c + bias[c]) * multiplier[c] / 2^shift[c])`,
-/// where `acc_c` is the exact sum of `w_q[c][i] * x_q[i]`; `q_c` is in
-/// Q`out_frac_bits[c]` (real value `q_c / 2^out_frac_bits[c]`): every channel has its own
-/// power-of-two format, which the next layer folds into its weight columns. ELU is applied before saturation
-/// to `i16`, so very negative inputs still give -1.
+/// Output channel `c` is `q_c = round((acc_c + bias_c) * multiplier_c / 2^shift_c)`, where
+/// `acc_c` is the exact sum of `w_q[c][i] * x_q[i]`; `q_c` is in Q`frac_bits_c` (real
+/// value `q_c / 2^frac_bits_c`): every channel has its own power-of-two format, which the
+/// next layer folds into its weight columns. ELU is applied before saturation to `i16`,
+/// so very negative inputs still give -1.
 #[derive(Clone, Copy, Debug)]
 pub struct QuantizedLayer<'a> {
     /// Logical input size.
@@ -31,14 +59,8 @@ pub struct QuantizedLayer<'a> {
     pub out_dim: usize,
     /// `words(out_dim)` row pairs x `words(in_dim)` input words x 2 (interleaved rows).
     pub weights: &'a [u32],
-    /// Bias in accumulator units, `2 * words(out_dim)` entries (zero padding).
-    pub bias: &'a [i64],
-    /// Requantization multiplier per channel (`2 * words(out_dim)` entries).
-    pub multiplier: &'a [i32],
-    /// Requantization right shift per channel, `1..=62`.
-    pub shift: &'a [u8],
-    /// Fractional bits of each output channel (`2 * words(out_dim)` entries).
-    pub out_frac_bits: &'a [u8],
+    /// Per channel, `2 * words(out_dim)` entries (padding channels last).
+    pub channels: &'a [ChannelQuant],
     /// Nonlinearity.
     pub activation: Activation,
 }
@@ -48,10 +70,7 @@ impl QuantizedLayer<'_> {
     pub fn validate(&self, index: usize) -> Result<(), NnError> {
         let rows = 2 * words(self.out_dim);
         let shape_ok = self.weights.len() == rows * words(self.in_dim)
-            && self.bias.len() == rows
-            && self.multiplier.len() == rows
-            && self.shift.len() == rows
-            && self.out_frac_bits.len() == rows
+            && self.channels.len() == rows
             && self.in_dim > 0
             && self.out_dim > 0;
         if !shape_ok {
@@ -61,14 +80,16 @@ impl QuantizedLayer<'_> {
             Activation::Elu => ELU_MAX_FRAC_BITS,
             Activation::Linear | Activation::Relu => 15,
         };
-        let frac_ok = self.out_frac_bits.iter().all(|&f| f <= max_frac);
-        if !frac_ok || self.shift.iter().any(|&s| !(1..=62).contains(&s)) {
+        let ok = |c: &ChannelQuant| {
+            (MIN_SHIFT..=MAX_SHIFT).contains(&c.shift) && c.frac_bits <= max_frac
+        };
+        if !self.channels.iter().all(ok) {
             return Err(NnError::Requant { layer: index });
         }
         Ok(())
     }
 
-    /// Multiply-accumulates of one evaluation (logical sizes).
+    /// Multiply-accumulates of one evaluation.
     pub const fn macs(&self) -> usize {
         self.in_dim * self.out_dim
     }
@@ -98,23 +119,21 @@ impl QuantizedLayer<'_> {
         let rows = self
             .weights
             .chunks_exact(2 * in_words)
-            .zip(self.bias.chunks_exact(2))
-            .zip(self.multiplier.chunks_exact(2))
-            .zip(self.shift.chunks_exact(2))
-            .zip(self.out_frac_bits.chunks_exact(2))
+            .zip(self.channels.chunks_exact(2))
             .zip(output.iter_mut().take(words(self.out_dim)));
-        for (((((w, b), m), s), f), out) in rows {
-            let (acc0, acc1) = kernel(w, x, (b[0], b[1]));
-            let y0 = self.finish(requantize(acc0, m[0], s[0]), f[0]);
-            let y1 = self.finish(requantize(acc1, m[1], s[1]), f[1]);
-            *out = pack(y0, y1);
+        for ((w, c), out) in rows {
+            if let [c0, c1] = c {
+                let (acc0, acc1) = kernel(w, x, (c0.bias, c1.bias));
+                *out = pack(self.finish(acc0, c0), self.finish(acc1, c1));
+            }
         }
     }
 
     #[inline(always)]
-    fn finish(&self, y: i64, frac_bits: u8) -> i16 {
+    fn finish(&self, acc: i64, c: &ChannelQuant) -> i16 {
+        let y = requantize(acc, c.multiplier, c.shift);
         match self.activation {
-            Activation::Elu if y < 0 => elu_negative(y, frac_bits),
+            Activation::Elu if y < 0 => elu_negative(y, c.frac_bits),
             Activation::Relu if y < 0 => 0,
             _ => saturate_i16(y),
         }

@@ -24,7 +24,7 @@ pub mod policy;
 pub mod quant;
 pub mod reference;
 
-pub use layer::{Activation, QuantizedLayer};
+pub use layer::{Activation, ChannelQuant, QuantizedLayer};
 pub use policy::{
     actor_input_words, Kernel, Mlp, PolicyOutput, PolicyRunner, QuantizedPolicy, Scratch,
 };

@@ -35,9 +35,8 @@ impl Mlp<'_> {
     pub fn out_frac_bits(&self, i: usize) -> u8 {
         self.layers
             .last()
-            .and_then(|l| l.out_frac_bits.get(i))
-            .copied()
-            .unwrap_or(0)
+            .and_then(|l| l.channels.get(i))
+            .map_or(0, |c| c.frac_bits)
     }
 
     /// Multiply-accumulates of one evaluation.
@@ -266,7 +265,7 @@ impl<const W: usize> Default for Scratch<W> {
 /// What a policy step produces.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PolicyOutput {
-    /// The network's raw output (channel `j` in Q`out_frac_bits[j]` of the actor's last
+    /// The network's raw output (channel `j` in Q`frac_bits` of the actor's last
     /// layer), for bit-exact comparisons.
     pub action_q: [i16; NUM_JOINTS],
     /// The action, clipped to `+-ACTION_CLIP`.

@@ -345,8 +345,8 @@ fn build(
         }
 
         // Forces: cones, bounds, effort, rate, soft switches.
-        for leg in 0..NUM_LEGS {
-            let Some(fi) = force_index[k][leg] else {
+        for (leg, slot) in force_index[k].iter().enumerate() {
+            let Some(fi) = *slot else {
                 continue;
             };
             qp.add_cone([
@@ -467,9 +467,9 @@ mod tests {
             sol.max_moment_residual_nm
         );
         // Swing feet carry no force.
-        for (k, row) in sol.forces_n.iter().enumerate() {
-            for leg in 0..NUM_LEGS {
-                assert_eq!(row[leg].is_some(), sol.contacts[k][leg]);
+        for (row, contacts) in sol.forces_n.iter().zip(&sol.contacts) {
+            for (force, in_contact) in row.iter().zip(contacts) {
+                assert_eq!(force.is_some(), *in_contact);
             }
         }
     }

@@ -14,6 +14,9 @@ pub struct PlotError {
     message: String,
 }
 
+/// A curve of the velocity panel: name, colour, value per frame, commanded value.
+type Series<'a> = (&'static str, RGBColor, Box<dyn Fn(usize) -> f32 + 'a>, f32);
+
 /// Cycles shown.
 const CYCLES: usize = 2;
 
@@ -134,7 +137,7 @@ fn draw(clip: &MotionClip, path: &Path) -> Result<(), String> {
         .map_err(|x| e(&x))?;
 
     // Base velocity (base frame) against the command.
-    let series: [(&str, RGBColor, Box<dyn Fn(usize) -> f32>, f32); 3] = [
+    let series: [Series; 3] = [
         (
             "vx [m/s]",
             BLUE,

@@ -36,7 +36,7 @@ pub struct TripodSchedule {
 impl TripodSchedule {
     /// A schedule of `frames_per_cycle` frames in which each tripod swings for `swing_frames`.
     pub fn new(frames_per_cycle: usize, swing_frames: usize) -> Result<Self, ScheduleError> {
-        if frames_per_cycle < 4 || frames_per_cycle % 2 != 0 {
+        if frames_per_cycle < 4 || !frames_per_cycle.is_multiple_of(2) {
             return Err(ScheduleError::FramesPerCycle(frames_per_cycle));
         }
         let max = frames_per_cycle / 2;

@@ -215,17 +215,11 @@ fn robot() -> RobotWorld {
 }
 
 #[test]
-fn replayed_clips_walk_at_the_command_in_the_simulator() {
-    let cfg = ReplayConfig {
-        cycles: 4,
-        ..Default::default()
-    };
-    for c in [
-        clip("fwd", 0.4, 0.0, 0.0),
-        clip("left", 0.0, 0.2, 0.0),
-        clip("turn", 0.0, 0.0, -0.5),
-    ] {
-        let r = replay_clip(&mut robot(), &c, &cfg);
+fn every_committed_clip_walks_at_its_command_in_the_simulator() {
+    let data = MotionDataset::load_dir(&committed_dir()).unwrap();
+    let cfg = ReplayConfig::default();
+    for c in data.clips() {
+        let r = replay_clip(&mut robot(), c, &cfg);
         assert!(r.passed, "{}", r.summary());
     }
     // A negative control: frozen joints while the clip claims 0.4 m/s must fail.

@@ -120,6 +120,41 @@ fn run() -> Result<(), ()> {
         )
         .ok();
     }
+
+    // One layer alone (memory.layers.1, 512 -> 256): the kernel without the step's
+    // input quantization, copies and other layers.
+    if let Some(layer) = POLICY.memory.layers.get(1) {
+        static mut INPUT: [u32; 256] = [0; 256];
+        static mut OUTPUT: [u32; 256] = [0; 256];
+        // SAFETY: single-threaded; the only references to these statics.
+        let (input, output) = unsafe {
+            (
+                &mut *core::ptr::addr_of_mut!(INPUT),
+                &mut *core::ptr::addr_of_mut!(OUTPUT),
+            )
+        };
+        for (i, w) in input.iter_mut().enumerate() {
+            *w = (i as u32).wrapping_mul(0x9e37_79b9);
+        }
+        for native in [true, false] {
+            let start = SYST::get_current();
+            if native {
+                layer.run(input, output);
+            } else {
+                layer.run_portable(input, output);
+            }
+            let insns = ticks_since(start).saturating_sub(empty) as f32 * insns_per_tick;
+            let name = if native { "smlald" } else { "portable" };
+            writeln!(
+                out,
+                "layer memory.1 ({} -> {}) {name}: instructions/MAC {:.3}",
+                layer.in_dim,
+                layer.out_dim,
+                insns / layer.macs() as f32
+            )
+            .ok();
+        }
+    }
     Ok(())
 }
 

@@ -1,11 +1,17 @@
 //! Motion priors: a tripod-gait dataset made by trajectory optimization, for the AMP
 //! discriminator's style reward.
 //!
-//! Pipeline per command (see `hexapod priors`): a fixed tripod schedule
-//! ([`schedule`]), Raibert footholds and swing trajectories ([`feet`]), a convex QP over the
-//! single-rigid-body base motion and friction-cone contact forces ([`optimize`], solved by
-//! clarabel through [`qp`]), joint angles by the legs' inverse kinematics, written as a
-//! JSON motion clip.
+//! Pipeline per command ([`command`], run by `hexapod priors`): a fixed tripod schedule
+//! ([`schedule`]), Raibert footholds and min-jerk swings with clearance ([`feet`]), a convex
+//! QP over the single-rigid-body base motion and friction-cone contact forces ([`optimize`],
+//! model in [`body`], solved by clarabel through [`qp`]), joint angles by the legs' inverse
+//! kinematics with kinematic checks ([`assemble`]), written as a JSON motion clip
+//! ([`clip`], frame layout in [`frame`]) with plots ([`plot`]). [`generate`] strings these
+//! together and reports solver status, objective and constraint violations per clip.
+//!
+//! Consumers: [`dataset`] loads a directory of clips and samples (s_t, s_t+1) AMP-state
+//! transitions weighted by `MotionWeight`; [`replay`] plays clips in host-sim through the CSP
+//! drives and checks that the robot stays upright and walks at the command.
 pub mod assemble;
 pub mod body;
 pub mod clip;

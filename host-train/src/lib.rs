@@ -2,6 +2,7 @@
 #![warn(missing_docs)]
 
 pub mod algo;
+pub mod alloc;
 pub mod amp;
 pub mod checkpoint;
 pub mod cli;

@@ -25,6 +25,7 @@ enum Command {
 }
 
 fn main() -> anyhow::Result<()> {
+    host_train::alloc::keep_freed_memory();
     let cli = Cli::parse();
     match cli.command {
         Command::Train(args) => cli::train::run(args),

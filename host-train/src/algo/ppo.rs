@@ -35,6 +35,61 @@ pub struct ActOutput {
     pub estimate: Vec<f32>,
 }
 
+/// One minibatch of rollout data as tensors (`B` rows).
+pub struct Minibatch {
+    /// `[B, 63]`.
+    pub actor: Tensor,
+    /// `[B, 210]`.
+    pub history: Tensor,
+    /// `[B, 42]`.
+    pub privileged: Tensor,
+    /// `[B, 187]`.
+    pub heights: Tensor,
+    /// `[B, 18]`.
+    pub actions: Tensor,
+    /// Action means at rollout time `[B, 18]`.
+    pub old_mean: Tensor,
+    /// `[B]`.
+    pub old_log_probs: Tensor,
+    /// Normalized advantages `[B]`.
+    pub advantages: Tensor,
+    /// `[B]`.
+    pub old_values: Tensor,
+    /// `[B]`.
+    pub returns: Tensor,
+}
+
+impl Minibatch {
+    /// Gathers rows `idx` of the storage.
+    pub fn gather(storage: &RolloutStorage, idx: &[usize], dev: &Device) -> Result<Self> {
+        let col = |v: &[f32]| Tensor::from_vec(gather_rows(v, 1, idx), idx.len(), dev);
+        Ok(Self {
+            actor: tensor(gather_rows(&storage.actor_obs, ACTOR_OBS_DIM, idx), ACTOR_OBS_DIM, dev)?,
+            history: tensor(gather_rows(&storage.history, HISTORY_DIM, idx), HISTORY_DIM, dev)?,
+            privileged: tensor(gather_rows(&storage.privileged, PRIVILEGED_DIM, idx), PRIVILEGED_DIM, dev)?,
+            heights: tensor(gather_rows(&storage.heights, HEIGHT_SCAN_DIM, idx), HEIGHT_SCAN_DIM, dev)?,
+            actions: tensor(gather_rows(&storage.actions, ACTOR_OUT, idx), ACTOR_OUT, dev)?,
+            old_mean: tensor(gather_rows(&storage.action_mean, ACTOR_OUT, idx), ACTOR_OUT, dev)?,
+            old_log_probs: col(&storage.log_probs)?,
+            advantages: col(&storage.advantages)?,
+            old_values: col(&storage.values)?,
+            returns: col(&storage.returns)?,
+        })
+    }
+}
+
+/// AMP transitions for one minibatch, flat `[B, 61]` each.
+pub struct AmpBatch {
+    /// Policy `s_t` (from the replay buffer).
+    pub policy_s: Vec<f32>,
+    /// Policy `s_t+1`.
+    pub policy_sn: Vec<f32>,
+    /// Prior `s_t`.
+    pub prior_s: Vec<f32>,
+    /// Prior `s_t+1`.
+    pub prior_sn: Vec<f32>,
+}
+
 /// Means over one update's minibatches.
 #[derive(Clone, Debug, Default)]
 pub struct UpdateStats {
@@ -233,101 +288,32 @@ impl Ppo {
         iteration: usize,
     ) -> std::result::Result<UpdateStats, TrainError> {
         let p = self.cfg.ppo.clone();
-        let dev = self.device.clone();
         let old_log_std = self.ac.log_std.detach().copy()?;
         let mut priors = priors;
         let mut st = UpdateStats::default();
         let mut count = 0usize;
         for _epoch in 0..p.num_learning_epochs {
             for idx in storage.minibatch_indices(p.num_mini_batches, &mut self.rng) {
-                let b = idx.len();
-                let actor = tensor(gather_rows(&storage.actor_obs, ACTOR_OBS_DIM, &idx), ACTOR_OBS_DIM, &dev)?;
-                let history = tensor(gather_rows(&storage.history, HISTORY_DIM, &idx), HISTORY_DIM, &dev)?;
-                let privileged_v = gather_rows(&storage.privileged, PRIVILEGED_DIM, &idx);
-                let privileged = tensor(privileged_v, PRIVILEGED_DIM, &dev)?;
-                let heights = tensor(gather_rows(&storage.heights, HEIGHT_SCAN_DIM, &idx), HEIGHT_SCAN_DIM, &dev)?;
-                let actions = tensor(gather_rows(&storage.actions, ACTOR_OUT, &idx), ACTOR_OUT, &dev)?;
-                let old_mean = tensor(gather_rows(&storage.action_mean, ACTOR_OUT, &idx), ACTOR_OUT, &dev)?;
-                let col = |v: &[f32]| Tensor::from_vec(gather_rows(v, 1, &idx), b, &dev);
-                let (old_logp, adv, old_v, ret) = (
-                    col(&storage.log_probs)?,
-                    col(&storage.advantages)?,
-                    col(&storage.values)?,
-                    col(&storage.returns)?,
-                );
-
-                let out = self.ac.policy(&actor, &history)?;
-                let kl = gaussian_kl(&old_mean, &old_log_std, &out.mean, &self.ac.log_std)?;
-                if p.schedule == LrSchedule::Adaptive && kl.is_finite() {
-                    if kl > 2.0 * p.desired_kl {
-                        self.opt.lr = (self.opt.lr / 1.5).max(1e-5);
-                    } else if kl < 0.5 * p.desired_kl && kl > 0.0 {
-                        self.opt.lr = (self.opt.lr * 1.5).min(1e-2);
+                let mb = Minibatch::gather(storage, &idx, &self.device)?;
+                let amp = match (&self.replay, priors.as_deref_mut()) {
+                    (Some(replay), Some(src)) if self.disc.is_some() => {
+                        let (policy_s, policy_sn) = replay.sample(idx.len(), &mut self.rng);
+                        let (prior_s, prior_sn) = src.sample(idx.len(), &mut self.rng);
+                        Some(AmpBatch { policy_s, policy_sn, prior_s, prior_sn })
                     }
-                }
-                let logp = self.ac.log_prob(&out.mean, &actions)?;
-                let values = self.ac.value(&CriticInput {
-                    actor_obs: &actor,
-                    history: &history,
-                    privileged: &privileged,
-                    heights: &heights,
-                })?;
-                let (surr, vloss) =
-                    ppo_losses(&logp, &old_logp, &adv, &values, &old_v, &ret, p.clip_param as f64, p.use_clipped_value_loss)?;
-                let entropy = self.ac.entropy()?;
-                let mut loss = ((&surr + (&vloss * p.value_loss_coef as f64)?)? - (&entropy * p.entropy_coef as f64)?)?;
-                let mut est_loss_v = 0.0f32;
-                if let Some(estimate) = &out.estimate {
-                    let target = privileged.narrow(1, PRIV_LIN_VEL.start, ESTIMATOR_OUT)?;
-                    let est_loss = estimate.sub(&target)?.sqr()?.mean_all()?;
-                    est_loss_v = est_loss.to_scalar::<f32>()?;
-                    loss = (loss + (est_loss * p.estimator_loss_coef as f64)?)?;
-                }
-                let mut disc_v = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
-                let mut amp_batch = None;
-                if let (Some(disc), Some(replay), Some(src)) = (&self.disc, &self.replay, priors.as_deref_mut()) {
-                    let (ps, psn) = replay.sample(b, &mut self.rng);
-                    let (es, esn) = src.sample(b, &mut self.rng);
-                    let policy_in = disc.input(&ps, &psn)?;
-                    let prior_in = disc.input(&es, &esn)?;
-                    let dl = disc.loss(&prior_in, &policy_in, self.cfg.amp.grad_penalty_weight as f64)?;
-                    disc_v = (dl.ls_loss, dl.grad_penalty, dl.d_prior, dl.d_policy);
-                    loss = (loss + (dl.total * self.cfg.amp.loss_coef as f64)?)?;
-                    amp_batch = Some((ps, psn, es, esn));
-                }
-                let loss_v = loss.to_scalar::<f32>()?;
-                let surr_v = surr.to_scalar::<f32>()?;
-                let vloss_v = vloss.to_scalar::<f32>()?;
-                if !loss_v.is_finite() {
-                    return Err(TrainError::NonFiniteLoss {
-                        what: "total loss",
-                        iteration,
-                        surrogate: surr_v,
-                        value: vloss_v,
-                        estimator: est_loss_v,
-                        discriminator: disc_v.0 + disc_v.1,
-                    });
-                }
-                let grads = loss.backward()?;
-                let gn = self.opt.step(&grads, Some(p.max_grad_norm as f64))?;
-                if let Some(dopt) = &mut self.disc_opt {
-                    dopt.step(&grads, None)?;
-                }
-                if let (Some(disc), Some((ps, psn, es, esn))) = (&mut self.disc, amp_batch) {
-                    for s in [&ps, &psn, &es, &esn] {
-                        disc.norm.update(s)?;
-                    }
-                }
-                st.surrogate += surr_v;
-                st.value += vloss_v;
-                st.entropy += entropy.to_scalar::<f32>()?;
-                st.estimator += est_loss_v;
-                st.kl += kl;
-                st.grad_norm += gn as f32;
-                st.disc_loss += disc_v.0;
-                st.grad_penalty += disc_v.1;
-                st.d_prior += disc_v.2;
-                st.d_policy += disc_v.3;
+                    _ => None,
+                };
+                let step = self.minibatch_step(&mb, &old_log_std, amp.as_ref(), iteration)?;
+                st.surrogate += step.surrogate;
+                st.value += step.value;
+                st.entropy += step.entropy;
+                st.estimator += step.estimator;
+                st.kl += step.kl;
+                st.grad_norm += step.grad_norm;
+                st.disc_loss += step.disc_loss;
+                st.grad_penalty += step.grad_penalty;
+                st.d_prior += step.d_prior;
+                st.d_policy += step.d_policy;
                 count += 1;
             }
         }
@@ -348,6 +334,87 @@ impl Ppo {
         }
         st.learning_rate = self.opt.lr;
         st.action_std = self.ac.log_std.exp()?.mean_all()?.to_scalar::<f32>()?;
+        Ok(st)
+    }
+
+    /// One gradient step on a minibatch: adaptive learning rate from the KL, PPO losses,
+    /// estimator loss, and (with `amp`) the discriminator loss, one backward pass, Adam
+    /// steps for the actor-critic (clipped) and the discriminator.
+    pub fn minibatch_step(
+        &mut self,
+        mb: &Minibatch,
+        old_log_std: &Tensor,
+        amp: Option<&AmpBatch>,
+        iteration: usize,
+    ) -> std::result::Result<UpdateStats, TrainError> {
+        let p = &self.cfg.ppo;
+        let out = self.ac.policy(&mb.actor, &mb.history)?;
+        let kl = gaussian_kl(&mb.old_mean, old_log_std, &out.mean, &self.ac.log_std)?;
+        if p.schedule == LrSchedule::Adaptive && kl.is_finite() {
+            if kl > 2.0 * p.desired_kl {
+                self.opt.lr = (self.opt.lr / 1.5).max(1e-5);
+            } else if kl < 0.5 * p.desired_kl && kl > 0.0 {
+                self.opt.lr = (self.opt.lr * 1.5).min(1e-2);
+            }
+        }
+        let logp = self.ac.log_prob(&out.mean, &mb.actions)?;
+        let values = self.ac.value(&CriticInput {
+            actor_obs: &mb.actor,
+            history: &mb.history,
+            privileged: &mb.privileged,
+            heights: &mb.heights,
+        })?;
+        let (surr, vloss) = ppo_losses(
+            &logp,
+            &mb.old_log_probs,
+            &mb.advantages,
+            &values,
+            &mb.old_values,
+            &mb.returns,
+            p.clip_param as f64,
+            p.use_clipped_value_loss,
+        )?;
+        let entropy = self.ac.entropy()?;
+        let mut loss = ((&surr + (&vloss * p.value_loss_coef as f64)?)? - (&entropy * p.entropy_coef as f64)?)?;
+        let mut st = UpdateStats { kl, ..Default::default() };
+        if let Some(estimate) = &out.estimate {
+            let target = mb.privileged.narrow(1, PRIV_LIN_VEL.start, ESTIMATOR_OUT)?;
+            let est_loss = estimate.sub(&target)?.sqr()?.mean_all()?;
+            st.estimator = est_loss.to_scalar::<f32>()?;
+            loss = (loss + (est_loss * p.estimator_loss_coef as f64)?)?;
+        }
+        if let (Some(disc), Some(a)) = (&self.disc, amp) {
+            let policy_in = disc.input(&a.policy_s, &a.policy_sn)?;
+            let prior_in = disc.input(&a.prior_s, &a.prior_sn)?;
+            let dl = disc.loss(&prior_in, &policy_in, self.cfg.amp.grad_penalty_weight as f64)?;
+            (st.disc_loss, st.grad_penalty, st.d_prior, st.d_policy) = (dl.ls_loss, dl.grad_penalty, dl.d_prior, dl.d_policy);
+            loss = (loss + (dl.total * self.cfg.amp.loss_coef as f64)?)?;
+        }
+        let loss_v = loss.to_scalar::<f32>()?;
+        st.surrogate = surr.to_scalar::<f32>()?;
+        st.value = vloss.to_scalar::<f32>()?;
+        st.entropy = entropy.to_scalar::<f32>()?;
+        if !loss_v.is_finite() {
+            return Err(TrainError::NonFiniteLoss {
+                what: "total loss",
+                iteration,
+                surrogate: st.surrogate,
+                value: st.value,
+                estimator: st.estimator,
+                discriminator: st.disc_loss + st.grad_penalty,
+            });
+        }
+        let grads = loss.backward()?;
+        st.grad_norm = self.opt.step(&grads, Some(p.max_grad_norm as f64))? as f32;
+        if let Some(dopt) = &mut self.disc_opt {
+            dopt.step(&grads, None)?;
+        }
+        if let (Some(disc), Some(a)) = (&mut self.disc, amp) {
+            for s in [&a.policy_s, &a.policy_sn, &a.prior_s, &a.prior_sn] {
+                disc.norm.update(s)?;
+            }
+        }
+        st.learning_rate = self.opt.lr;
         Ok(st)
     }
 

@@ -59,7 +59,7 @@ impl Mlp {
         for (k, layer) in self.layers.iter().enumerate() {
             h = layer.forward(&h)?;
             if k < last {
-                h = h.elu(1.0)?;
+                h = crate::nn::elu::elu(&h)?;
             }
         }
         Ok(h)
@@ -75,7 +75,7 @@ impl Mlp {
             h = layer.forward(&h)?;
             if k < last {
                 pre.push(h.clone());
-                h = h.elu(1.0)?;
+                h = crate::nn::elu::elu(&h)?;
             }
         }
         Ok((h, pre))
@@ -89,12 +89,17 @@ impl Mlp {
         let n = self.layers.len();
         assert_eq!(preactivations.len(), n - 1, "one pre-activation per hidden layer");
         assert_eq!(self.output_dim(), 1, "input_gradient needs a scalar output");
-        // g = dy/dh_{n-1}: the last weight row [1, H], broadcast over the batch by the product.
-        let mut g = self.layers[n - 1].weight().clone();
-        for k in (0..n - 1).rev() {
-            let dz = preactivations[k].minimum(0.0)?.exp()?;
-            g = dz.broadcast_mul(&g)?; // [B, H_k]: dy/dz_k
-            g = g.matmul(self.layers[k].weight())?; // [B, in_k]: dy/dh_{k-1}
+        if n == 1 {
+            return self.layers[0].weight().broadcast_as((preactivations.len().max(1), self.input_dim()))?.contiguous();
+        }
+        // dy/dz_{n-2} (*) W_{n-2} = elu'(z_{n-2}) @ (diag(w_{n-1}) W_{n-2}): folding the last
+        // weight row into the previous matrix saves a batch-sized product and its backward.
+        let w_last = self.layers[n - 1].weight().t()?; // [H, 1]
+        let folded = self.layers[n - 2].weight().broadcast_mul(&w_last)?; // [H, in]
+        let mut g = crate::nn::elu::elu_derivative(&preactivations[n - 2])?.matmul(&folded)?;
+        for k in (0..n - 2).rev() {
+            let dz = crate::nn::elu::elu_derivative(&preactivations[k])?;
+            g = g.mul(&dz)?.matmul(self.layers[k].weight())?; // [B, in_k]
         }
         Ok(g)
     }

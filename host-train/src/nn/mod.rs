@@ -1,5 +1,6 @@
 //! Network building blocks: ELU MLPs, empirical normalization, the asymmetric actor-critic.
 
 pub mod actor_critic;
+pub mod elu;
 pub mod mlp;
 pub mod normalizer;

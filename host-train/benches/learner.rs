@@ -1,0 +1,197 @@
+//! Learner benchmark: the PPO minibatch step and the discriminator step with gradient
+//! penalty, at the paper's network sizes, in candle and (same run, same thread count) in
+//! PyTorch (`bench/learner_torch.py`), printed as ratios; plus end-to-end training
+//! throughput (env steps/s including updates) on the simulator.
+//!
+//! `cargo bench -p host-train --bench learner -- [--batch N] [--reps N] [--no-torch] [--e2e-envs N]`
+
+use anyhow::{bail, Context};
+use candle_core::{DType, Device, Tensor};
+use candle_nn::VarMap;
+use host_train::algo::adam::Adam;
+use host_train::algo::ppo::{Minibatch, Ppo};
+use host_train::amp::discriminator::{Discriminator, DISC_IN};
+use host_train::amp::prior_source::SyntheticTripod;
+use host_train::config::{EnvKind, PriorKind, TrainConfig};
+use host_train::runner::Runner;
+use hexapod_core::nets::ACTOR_OUT;
+use hexapod_core::obs::{ACTOR_OBS_DIM, HEIGHT_SCAN_DIM, HISTORY_DIM, PRIVILEGED_DIM};
+use rand::{Rng, SeedableRng};
+use std::path::Path;
+use std::process::Command;
+use std::time::Instant;
+
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
+struct Args {
+    batch: usize,
+    reps: usize,
+    torch: bool,
+    e2e_envs: usize,
+    e2e_iterations: usize,
+}
+
+fn parse_args() -> anyhow::Result<Args> {
+    let mut a = Args { batch: 24_576, reps: 5, torch: true, e2e_envs: 128, e2e_iterations: 3 };
+    let mut it = std::env::args().skip(1);
+    while let Some(arg) = it.next() {
+        let mut num = |name: &str| -> anyhow::Result<usize> {
+            it.next().with_context(|| format!("{name} needs a value"))?.parse().with_context(|| format!("bad {name}"))
+        };
+        match arg.as_str() {
+            "--batch" => a.batch = num("--batch")?,
+            "--reps" => a.reps = num("--reps")?,
+            "--e2e-envs" => a.e2e_envs = num("--e2e-envs")?,
+            "--e2e-iterations" => a.e2e_iterations = num("--e2e-iterations")?,
+            "--no-torch" => a.torch = false,
+            "--bench" => {}
+            other => bail!("unknown argument {other}"),
+        }
+    }
+    Ok(a)
+}
+
+fn random(rng: &mut rand_chacha::ChaCha8Rng, rows: usize, cols: usize) -> Tensor {
+    let v: Vec<f32> = (0..rows * cols).map(|_| rng.gen_range(-1.0..1.0)).collect();
+    Tensor::from_vec(v, (rows, cols), &Device::Cpu).unwrap()
+}
+
+fn median(mut xs: Vec<f64>) -> f64 {
+    xs.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    xs[xs.len() / 2]
+}
+
+fn time<F: FnMut() -> anyhow::Result<()>>(reps: usize, mut f: F) -> anyhow::Result<f64> {
+    f()?; // warm-up
+    let mut t = Vec::with_capacity(reps);
+    for _ in 0..reps {
+        let t0 = Instant::now();
+        f()?;
+        t.push(t0.elapsed().as_secs_f64());
+    }
+    Ok(median(t))
+}
+
+/// The PPO minibatch step (paper networks, no AMP): forward, losses, backward, clipped Adam.
+fn candle_ppo_step(batch: usize, reps: usize) -> anyhow::Result<f64> {
+    let mut cfg = TrainConfig::default();
+    cfg.rewards.style = false;
+    let mut ppo = Ppo::new(&cfg)?;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+    let mb = Minibatch {
+        actor: random(&mut rng, batch, ACTOR_OBS_DIM),
+        history: random(&mut rng, batch, HISTORY_DIM),
+        privileged: random(&mut rng, batch, PRIVILEGED_DIM),
+        heights: random(&mut rng, batch, HEIGHT_SCAN_DIM),
+        actions: random(&mut rng, batch, ACTOR_OUT),
+        old_mean: random(&mut rng, batch, ACTOR_OUT),
+        old_log_probs: random(&mut rng, batch, 1).squeeze(1)?,
+        advantages: random(&mut rng, batch, 1).squeeze(1)?,
+        old_values: random(&mut rng, batch, 1).squeeze(1)?,
+        returns: random(&mut rng, batch, 1).squeeze(1)?,
+    };
+    let old_log_std = ppo.ac.log_std.detach().copy()?;
+    time(reps, || {
+        ppo.minibatch_step(&mb, &old_log_std, None, 0)?;
+        Ok(())
+    })
+}
+
+/// The discriminator step: LSGAN loss on `batch` prior and `batch` policy transitions,
+/// gradient penalty on the prior ones, backward, Adam.
+fn candle_disc_step(batch: usize, reps: usize) -> anyhow::Result<f64> {
+    let (params, stats) = (VarMap::new(), VarMap::new());
+    let disc = Discriminator::new(&[1024, 512], &params, &stats, DType::F32, &Device::Cpu)?;
+    let mut opt = Adam::new(&params, 1e-4)?;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    let prior = random(&mut rng, batch, DISC_IN);
+    let policy = random(&mut rng, batch, DISC_IN);
+    time(reps, || {
+        let l = disc.loss(&prior, &policy, 10.0)?;
+        opt.step(&l.total.backward()?, None)?;
+        Ok(())
+    })
+}
+
+/// End-to-end: `hexapod train` iterations on the simulator (default preset with synthetic
+/// priors), env steps per second including updates.
+fn end_to_end(envs: usize, iterations: usize) -> anyhow::Result<(f64, f64, f64)> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/default.toml");
+    let mut cfg = TrainConfig::load(&root)?;
+    cfg.env.kind = EnvKind::Sim;
+    cfg.env.num_envs = envs;
+    cfg.amp.prior_kind = PriorKind::Synthetic;
+    cfg.runner.max_iterations = iterations;
+    let env = host_train::env::make_env(&cfg)?;
+    let dir = std::env::temp_dir().join(format!("hexapod-bench-{}", std::process::id()));
+    let mut runner = Runner::new(&cfg, env, Some(Box::new(SyntheticTripod::default())), &dir)?;
+    runner.iterate()?; // warm-up (replay buffer, allocator)
+    let (mut collect, mut update, mut steps) = (0.0, 0.0, 0.0);
+    for _ in 0..iterations {
+        let row = runner.iterate()?;
+        collect += row["perf/collect_s"];
+        update += row["perf/update_s"];
+        steps += (cfg.env.num_envs * cfg.ppo.num_steps_per_env) as f64;
+    }
+    std::fs::remove_dir_all(&dir).ok();
+    Ok((steps / (collect + update), collect / iterations as f64, update / iterations as f64))
+}
+
+fn torch_times(batch: usize, reps: usize, threads: usize) -> anyhow::Result<(f64, f64)> {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../bench/learner_torch.py");
+    let out = Command::new("python3")
+        .arg(&script)
+        .args(["--batch", &batch.to_string(), "--reps", &reps.to_string(), "--threads", &threads.to_string()])
+        .output()
+        .context("running python3 bench/learner_torch.py")?;
+    if !out.status.success() {
+        bail!("PyTorch benchmark failed: {}", String::from_utf8_lossy(&out.stderr));
+    }
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).context("PyTorch benchmark output")?;
+    Ok((v["ppo_step_s"].as_f64().context("ppo_step_s")?, v["disc_step_s"].as_f64().context("disc_step_s")?))
+}
+
+fn main() -> anyhow::Result<()> {
+    let args = parse_args()?;
+    let kept = host_train::alloc::keep_freed_memory();
+    let threads = candle_core::utils::get_num_threads();
+    println!(
+        "learner benchmark: batch {}, median of {} reps, {} threads, mimalloc purging {}",
+        args.batch,
+        args.reps,
+        threads,
+        if kept { "off" } else { "on" }
+    );
+    let ppo = candle_ppo_step(args.batch, args.reps)?;
+    let disc = candle_disc_step(args.batch, args.reps)?;
+    let torch = if args.torch {
+        match torch_times(args.batch, args.reps, threads) {
+            Ok(t) => Some(t),
+            Err(e) => {
+                println!("PyTorch: not measured ({e})");
+                None
+            }
+        }
+    } else {
+        None
+    };
+    println!("{:<34} {:>10} {:>10} {:>8}", "step", "candle s", "torch s", "ratio");
+    for (name, c, t) in [
+        ("PPO minibatch step", ppo, torch.map(|t| t.0)),
+        ("discriminator step + penalty", disc, torch.map(|t| t.1)),
+    ] {
+        match t {
+            Some(t) => println!("{name:<34} {c:>10.3} {t:>10.3} {:>7.2}x", c / t),
+            None => println!("{name:<34} {c:>10.3} {:>10} {:>8}", "-", "-"),
+        }
+    }
+    if args.e2e_envs > 0 {
+        let (sps, collect, update) = end_to_end(args.e2e_envs, args.e2e_iterations)?;
+        println!(
+            "end to end (sim, {} envs x 24 steps, default preset): {:.0} env steps/s (collect {:.2} s + update {:.2} s per iteration)",
+            args.e2e_envs, sps, collect, update
+        );
+    }
+    Ok(())
+}

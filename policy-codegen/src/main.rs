@@ -191,7 +191,7 @@ fn main() -> Result<()> {
                 ),
                 None => (
                     records::synthetic(count, 2),
-                    format!("synthetic observations (seed 2)"),
+                    "synthetic observations (seed 2)".to_string(),
                 ),
             };
             let r =

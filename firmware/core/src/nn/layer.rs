@@ -139,3 +139,86 @@ impl QuantizedLayer<'_> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::nn::unpack;
+
+    /// 3 inputs (Q12), 3 outputs (Q12); weights in Q14, so `multiplier / 2^shift = 2^-14`.
+    fn tables() -> ([u32; 8], [ChannelQuant; 4]) {
+        let w = |r: [i16; 3]| [pack(r[0], r[1]), pack(r[2], 0)];
+        let (r0, r1, r2) = (w([16384, 0, 0]), w([-16384, 8192, 0]), w([0, 0, -16384]));
+        // Row pairs (0, 1) and (2, padding), each input word interleaved.
+        let weights = [r0[0], r1[0], r0[1], r1[1], r2[0], 0, r2[1], 0];
+        let q = |bias: i64| ChannelQuant::new(bias, 1 << 20, 34, 12);
+        (weights, [q(0), q(4096 << 14), q(0), ChannelQuant::PAD])
+    }
+
+    fn layer<'a>(
+        weights: &'a [u32],
+        channels: &'a [ChannelQuant],
+        activation: Activation,
+    ) -> QuantizedLayer<'a> {
+        QuantizedLayer {
+            in_dim: 3,
+            out_dim: 3,
+            weights,
+            channels,
+            activation,
+        }
+    }
+
+    #[test]
+    fn computes_requantizes_and_activates() {
+        let (weights, channels) = tables();
+        // x = (1.0, 0.5, 2.0) in Q12.
+        let x = [pack(4096, 2048), pack(8192, 0)];
+        let mut y = [0u32; 2];
+        let linear = layer(&weights, &channels, Activation::Linear);
+        linear.validate(0).unwrap();
+        linear.run(&x, &mut y);
+        // y0 = 1.0; y1 = -1.0 + 0.25 + 1.0 (bias) = 0.25; y2 = -2.0 (Q12).
+        assert_eq!(
+            [unpack(&y, 0), unpack(&y, 1), unpack(&y, 2)],
+            [4096, 1024, -8192]
+        );
+        assert_eq!(unpack(&y, 3), 0, "padding stays zero");
+        layer(&weights, &channels, Activation::Elu).run(&x, &mut y);
+        // ELU(-2) = exp(-2) - 1 = -0.8647 -> -3542 in Q12 (within the table's accuracy).
+        assert!(
+            (unpack(&y, 2) as i32 + 3542).abs() <= 1,
+            "{}",
+            unpack(&y, 2)
+        );
+        assert_eq!(unpack(&y, 0), 4096);
+        let relu = layer(&weights, &channels, Activation::Relu);
+        relu.run(&x, &mut y);
+        assert_eq!(unpack(&y, 2), 0);
+        let mut y_portable = [0u32; 2];
+        relu.run_portable(&x, &mut y_portable);
+        assert_eq!(y, y_portable);
+    }
+
+    #[test]
+    fn validation_names_the_problem() {
+        let (weights, channels) = tables();
+        let short = layer(&weights[..6], &channels, Activation::Linear);
+        assert_eq!(short.validate(2), Err(NnError::LayerShape { layer: 2 }));
+        let mut bad_shift = channels;
+        bad_shift[1].shift = 20;
+        assert_eq!(
+            layer(&weights, &bad_shift, Activation::Linear).validate(1),
+            Err(NnError::Requant { layer: 1 })
+        );
+        let mut fine_format = channels;
+        fine_format[1].frac_bits = 15;
+        assert!(layer(&weights, &fine_format, Activation::Linear)
+            .validate(1)
+            .is_ok());
+        assert_eq!(
+            layer(&weights, &fine_format, Activation::Elu).validate(1),
+            Err(NnError::Requant { layer: 1 })
+        );
+    }
+}

@@ -222,13 +222,17 @@ impl QuantizedPolicy<'_> {
             action: [0.0; NUM_JOINTS],
             q_target_rad: Q0_RAD,
         };
-        for j in 0..NUM_JOINTS {
-            let q = unpack(out, j);
+        let joints = result
+            .action_q
+            .iter_mut()
+            .zip(&mut result.action)
+            .zip(&mut result.q_target_rad);
+        for (j, ((raw, action), target)) in joints.enumerate() {
+            *raw = unpack(out, j);
             let lsb = pow2(-(self.actor.out_frac_bits(j) as i32));
-            let action = (q as f32 * lsb).clamp(-ACTION_CLIP, ACTION_CLIP);
-            result.action_q[j] = q;
-            result.action[j] = action;
-            result.q_target_rad[j] = Q0_RAD[j] + ACTION_SCALE_RAD * action;
+            *action = (*raw as f32 * lsb).clamp(-ACTION_CLIP, ACTION_CLIP);
+            // `target` starts at q0.
+            *target += ACTION_SCALE_RAD * *action;
         }
         Ok(result)
     }

@@ -102,20 +102,14 @@ impl Frame {
 
     /// A frame from its flat layout (no validation: see [`super::clip`]).
     pub fn from_row(r: &[f32; FRAME_DIM]) -> Self {
-        let arr = |range: Range<usize>| -> Vec<f32> { r[range].to_vec() };
-        let mut foot = [[0.0; 3]; NUM_LEGS];
-        for (leg, f) in foot.iter_mut().enumerate() {
-            let s = FRAME_FOOT_POS.start + 3 * leg;
-            f.copy_from_slice(&r[s..s + 3]);
-        }
         Self {
-            base_pos_world_m: arr(FRAME_BASE_POS).try_into().expect("3"),
-            base_quat_xyzw: arr(FRAME_BASE_QUAT).try_into().expect("4"),
-            joint_pos_rad: arr(FRAME_JOINT_POS).try_into().expect("18"),
-            foot_pos_base_m: foot,
-            lin_vel_base_m_s: arr(FRAME_LIN_VEL).try_into().expect("3"),
-            ang_vel_base_rad_s: arr(FRAME_ANG_VEL).try_into().expect("3"),
-            joint_vel_rad_s: arr(FRAME_JOINT_VEL).try_into().expect("18"),
+            base_pos_world_m: read(r, FRAME_BASE_POS.start),
+            base_quat_xyzw: read(r, FRAME_BASE_QUAT.start),
+            joint_pos_rad: read(r, FRAME_JOINT_POS.start),
+            foot_pos_base_m: std::array::from_fn(|leg| read(r, FRAME_FOOT_POS.start + 3 * leg)),
+            lin_vel_base_m_s: read(r, FRAME_LIN_VEL.start),
+            ang_vel_base_rad_s: read(r, FRAME_ANG_VEL.start),
+            joint_vel_rad_s: read(r, FRAME_JOINT_VEL.start),
             contacts: std::array::from_fn(|leg| r[FRAME_CONTACT.start + leg] > 0.5),
         }
     }
@@ -135,6 +129,11 @@ impl Frame {
             self.base_height_m(),
         )
     }
+}
+
+/// `N` consecutive values of a frame row from `start`.
+fn read<const N: usize>(r: &[f32; FRAME_DIM], start: usize) -> [f32; N] {
+    std::array::from_fn(|i| r[start + i])
 }
 
 #[cfg(test)]

@@ -56,6 +56,9 @@ enum Cmd {
         /// Synthetic observations when no recording is given.
         #[arg(long, default_value_t = 10_000)]
         count: usize,
+        /// Fail when the largest difference exceeds this.
+        #[arg(long)]
+        max_abs_diff: Option<f32>,
     },
     /// Compares the QEMU benchmark's output with the host's fixed-point step on the same
     /// input (bit for bit) and checks the instructions per MAC.
@@ -181,6 +184,7 @@ fn main() -> Result<()> {
             checkpoint: dir,
             observations,
             count,
+            max_abs_diff,
         } => {
             let ck = checkpoint::load(&dir)?;
             let q = quantize_default(&ck.policy)?;
@@ -205,6 +209,14 @@ fn main() -> Result<()> {
                 r.mean_abs_diff,
                 r.max_abs_action
             );
+            if let Some(limit) = max_abs_diff {
+                if r.max_abs_diff > limit {
+                    bail!(
+                        "max |a_fixed - a_f32| = {:.3e} exceeds {limit:e}",
+                        r.max_abs_diff
+                    );
+                }
+            }
         }
         Cmd::BenchCheck {
             output,

@@ -56,7 +56,8 @@ pub fn reference_gait() -> TripodGait {
     TripodGait::default()
 }
 
-/// The rough heightfield both simulators are timed on: one 8 m tile of +-3 cm noise.
+/// The rough heightfield both simulators are timed on: one 24 m tile of +-3 cm noise
+/// (0.2 m lattice), large enough that the timed walk stays on it.
 pub fn bench_terrain() -> Terrain {
     Terrain::generate(&TerrainConfig {
         tiles: true,
@@ -64,6 +65,7 @@ pub fn bench_terrain() -> Terrain {
         columns: vec![TileKind::RoughSlope],
         max_slope_deg: 0.0,
         rough_noise_m: 0.03,
+        tile_size_m: 24.0,
         border_m: 1.0,
         ..Default::default()
     })

@@ -13,7 +13,7 @@
 
 use crate::checkpoint::{DenseF32, MlpF32, PolicyF32};
 use crate::records::ObsRecord;
-use hexapod_core::nn::elu::ELU_MAX_FRAC_BITS;
+use hexapod_core::nn::elu::{ELU_MAX_FRAC_BITS, ELU_MIN_FRAC_BITS};
 use hexapod_core::nn::quant::{MAX_SHIFT, MIN_SHIFT};
 use hexapod_core::nn::{
     actor_input_words, words, Activation, ChannelQuant, Mlp, QuantizedLayer, QuantizedPolicy,
@@ -36,6 +36,18 @@ pub enum QuantError {
         channel: usize,
         /// The real requantization factor.
         scale: f64,
+    },
+    /// A hidden activation is too large for the ELU table's input format.
+    #[error("{net}.layers.{layer}: channel {channel} reaches {magnitude:.1}, beyond the ELU range +-256")]
+    Range {
+        /// Network.
+        net: &'static str,
+        /// Layer.
+        layer: usize,
+        /// Output channel.
+        channel: usize,
+        /// Largest calibrated magnitude.
+        magnitude: f64,
     },
     /// No calibration observations were given.
     #[error("calibration needs at least one observation")]
@@ -284,6 +296,19 @@ fn quantize_mlp(
             .iter()
             .map(|&m| frac_bits_for((m * HEADROOM).max(floor), max_bits))
             .collect();
+        let min_bits = if activation == Activation::Elu {
+            ELU_MIN_FRAC_BITS
+        } else {
+            0
+        };
+        if let Some(channel) = f.iter().position(|&b| b < min_bits) {
+            return Err(QuantError::Range {
+                net,
+                layer: k,
+                channel,
+                magnitude: cal[k][channel],
+            });
+        }
         out.push(quantize_layer(net, k, layer, &columns, &f, activation)?);
         columns = f
             .iter()

@@ -1117,5 +1117,5 @@ static ESTIMATOR_2_CHANNELS: [ChannelQuant; 4] = [
     ChannelQuant::new(0, 253933717, 45, 15),
     ChannelQuant::new(0, 200950709, 45, 15),
     ChannelQuant::new(0, 196445643, 45, 15),
-    ChannelQuant::new(0, 0, 33, 0),
+    ChannelQuant::new(0, 0, 33, 6),
 ];

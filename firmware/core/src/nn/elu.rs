@@ -10,6 +10,9 @@
 pub const ELU_STEPS_PER_UNIT_LOG2: u32 = 6;
 /// Number of table intervals (inputs in [-16, 0]).
 pub const ELU_TABLE_INTERVALS: usize = 1024;
+/// Smallest fractional bit count of an ELU layer's output (one table step per input lsb at
+/// most; Q6 spans +-512).
+pub const ELU_MIN_FRAC_BITS: u8 = 6;
 /// Largest fractional bit count of an ELU layer's output (Q15 table -> at least 1 bit shift).
 pub const ELU_MAX_FRAC_BITS: u8 = 14;
 
@@ -54,41 +57,26 @@ const fn elu_table() -> [i16; ELU_TABLE_INTERVALS + 1] {
 }
 
 /// ELU of a negative value `y` given in Q`frac_bits`, result in the same format.
-/// `frac_bits` must be at most [`ELU_MAX_FRAC_BITS`] (checked by the layer).
-#[inline]
+/// `frac_bits` must be in [`ELU_MIN_FRAC_BITS`]`..=`[`ELU_MAX_FRAC_BITS`] (checked by the
+/// layer; clamped here).
+#[inline(always)]
 pub fn elu_negative(y: i32, frac_bits: u8) -> i16 {
-    let frac_bits = frac_bits.min(ELU_MAX_FRAC_BITS) as u32;
-    // u = -y in Q(frac_bits); the table position is u * 64 / 2^frac_bits.
+    let f = (frac_bits as u32).clamp(ELU_MIN_FRAC_BITS as u32, ELU_MAX_FRAC_BITS as u32);
+    // Table position of u = -y: u * 64 / 2^f = u >> frac_len, remainder frac.
+    let frac_len = f - ELU_STEPS_PER_UNIT_LOG2;
     let u = y.unsigned_abs();
-    let (index, frac, frac_len) = if frac_bits >= ELU_STEPS_PER_UNIT_LOG2 {
-        let frac_len = frac_bits - ELU_STEPS_PER_UNIT_LOG2;
-        (
-            u >> frac_len,
-            (u & ((1u32 << frac_len) - 1)) as i32,
-            frac_len,
-        )
-    } else {
-        let up = ELU_STEPS_PER_UNIT_LOG2 - frac_bits;
-        let index = if u > (u32::MAX >> up) {
-            u32::MAX
-        } else {
-            u << up
-        };
-        (index, 0, 0)
-    };
-    let value_q15: i32 = match (
-        ELU_TABLE_Q15.get(index as usize),
-        ELU_TABLE_Q15.get((index as usize).saturating_add(1)),
-    ) {
-        (Some(&a), Some(&b)) if frac_len > 0 => {
+    let index = (u >> frac_len) as usize;
+    let value_q15 = match ELU_TABLE_Q15.get(index..index.saturating_add(2)) {
+        Some(&[a, b]) => {
             let (a, b) = (a as i32, b as i32);
-            a + (((b - a) * frac + (1 << (frac_len - 1))) >> frac_len)
+            let frac = (u & ((1 << frac_len) - 1)) as i32;
+            a + (((b - a) * frac + ((1 << frac_len) >> 1)) >> frac_len)
         }
-        (Some(&a), _) => a as i32,
+        // At or beyond -16: exp(x) - 1 is -1 to within the table's last entry.
         _ => ELU_TABLE_Q15[ELU_TABLE_INTERVALS] as i32,
     };
-    // Q15 -> Q(frac_bits), rounding to nearest.
-    let down = 15 - frac_bits;
+    // Q15 -> Q(f), rounding to nearest.
+    let down = 15 - f;
     ((value_q15 + (1 << (down - 1))) >> down) as i16
 }
 
@@ -110,7 +98,7 @@ mod tests {
 
     #[test]
     fn negative_branch_is_accurate() {
-        for frac_bits in [4u8, 8, 11, 14] {
+        for frac_bits in [6u8, 8, 11, 14] {
             let lsb = 1.0 / (1u64 << frac_bits) as f64;
             for step in 1..4000 {
                 let x = -(step as f64) * 0.00731;

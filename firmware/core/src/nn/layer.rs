@@ -1,6 +1,6 @@
 //! One quantized dense layer: `y = act(requant(W x + b))`, weights `i16` per output channel.
 
-use super::elu::{elu_negative, ELU_MAX_FRAC_BITS};
+use super::elu::{elu_negative, ELU_MAX_FRAC_BITS, ELU_MIN_FRAC_BITS};
 use super::kernel::{dot_row_pair, dot_row_pair_portable};
 use super::quant::{requantize, saturate_i16, MAX_SHIFT, MIN_SHIFT};
 use super::{pack, words, NnError};
@@ -40,8 +40,8 @@ impl ChannelQuant {
         }
     }
 
-    /// A padding channel (always 0).
-    pub const PAD: Self = Self::new(0, 0, MIN_SHIFT, 0);
+    /// A padding channel (always 0; a format valid for every activation).
+    pub const PAD: Self = Self::new(0, 0, MIN_SHIFT, ELU_MIN_FRAC_BITS);
 }
 
 /// A dense layer in the packed, row-pair-interleaved layout of [`crate::nn`].
@@ -76,12 +76,12 @@ impl QuantizedLayer<'_> {
         if !shape_ok {
             return Err(NnError::LayerShape { layer: index });
         }
-        let max_frac = match self.activation {
-            Activation::Elu => ELU_MAX_FRAC_BITS,
-            Activation::Linear | Activation::Relu => 15,
+        let frac = match self.activation {
+            Activation::Elu => ELU_MIN_FRAC_BITS..=ELU_MAX_FRAC_BITS,
+            Activation::Linear | Activation::Relu => 0..=15,
         };
         let ok = |c: &ChannelQuant| {
-            (MIN_SHIFT..=MAX_SHIFT).contains(&c.shift) && c.frac_bits <= max_frac
+            (MIN_SHIFT..=MAX_SHIFT).contains(&c.shift) && frac.contains(&c.frac_bits)
         };
         if !self.channels.iter().all(ok) {
             return Err(NnError::Requant { layer: index });
@@ -99,20 +99,31 @@ impl QuantizedLayer<'_> {
     /// with short tables the missing rows are skipped, never read out of bounds.
     #[inline]
     pub fn run(&self, input: &[u32], output: &mut [u32]) {
-        self.run_with(input, output, dot_row_pair);
+        match self.activation {
+            Activation::Linear => self.run_with(input, output, dot_row_pair, linear),
+            Activation::Elu => self.run_with(input, output, dot_row_pair, elu),
+            Activation::Relu => self.run_with(input, output, dot_row_pair, relu),
+        }
     }
 
     /// [`Self::run`] with the portable kernel on every target (benchmark baseline).
     pub fn run_portable(&self, input: &[u32], output: &mut [u32]) {
-        self.run_with(input, output, dot_row_pair_portable);
+        let k = dot_row_pair_portable;
+        match self.activation {
+            Activation::Linear => self.run_with(input, output, k, linear),
+            Activation::Elu => self.run_with(input, output, k, elu),
+            Activation::Relu => self.run_with(input, output, k, relu),
+        }
     }
 
+    /// The loop over row pairs, specialized for one kernel and one activation.
     #[inline(always)]
     fn run_with(
         &self,
         input: &[u32],
         output: &mut [u32],
         kernel: impl Fn(&[u32], &[u32], (i64, i64)) -> (i64, i64),
+        activation: impl Fn(i32, u8) -> i16,
     ) {
         let in_words = words(self.in_dim);
         let x = input.get(..in_words).unwrap_or(input);
@@ -121,23 +132,35 @@ impl QuantizedLayer<'_> {
             .chunks_exact(2 * in_words)
             .zip(self.channels.chunks_exact(2))
             .zip(output.iter_mut().take(words(self.out_dim)));
+        let finish = |acc: i64, c: &ChannelQuant| {
+            activation(requantize(acc, c.multiplier, c.shift), c.frac_bits)
+        };
         for ((w, c), out) in rows {
             if let [c0, c1] = c {
                 let (acc0, acc1) = kernel(w, x, (c0.bias, c1.bias));
-                *out = pack(self.finish(acc0, c0), self.finish(acc1, c1));
+                *out = pack(finish(acc0, c0), finish(acc1, c1));
             }
         }
     }
+}
 
-    #[inline(always)]
-    fn finish(&self, acc: i64, c: &ChannelQuant) -> i16 {
-        let y = requantize(acc, c.multiplier, c.shift);
-        match self.activation {
-            Activation::Elu if y < 0 => elu_negative(y, c.frac_bits),
-            Activation::Relu if y < 0 => 0,
-            _ => saturate_i16(y),
-        }
+#[inline(always)]
+fn linear(y: i32, _frac_bits: u8) -> i16 {
+    saturate_i16(y)
+}
+
+#[inline(always)]
+fn elu(y: i32, frac_bits: u8) -> i16 {
+    if y < 0 {
+        elu_negative(y, frac_bits)
+    } else {
+        saturate_i16(y)
     }
+}
+
+#[inline(always)]
+fn relu(y: i32, _frac_bits: u8) -> i16 {
+    saturate_i16(y.max(0))
 }
 
 #[cfg(test)]

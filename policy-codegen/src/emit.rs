@@ -163,6 +163,13 @@ fn lib_file(p: &Provenance, q: &OwnedPolicy, scratch_words: usize) -> String {
     );
     words_literal(&mut s, q.actor_obs_scale.iter().map(|v| format!("{v:?}")));
     s.push_str(";\n");
+    s.push_str(
+        "\n#[cfg(test)]\nmod tests {\n\
+         #[test]\nfn tables_validate_and_a_step_runs() {\n\
+         let mut runner = super::runner().expect(\"the generated tables validate\");\n\
+         let out = runner.step([0.3, 0.0, 0.0], &[0.0; 42]).expect(\"a step runs\");\n\
+         assert!(out.q_target_rad.iter().all(|q| q.is_finite()));\n}\n}\n",
+    );
     s
 }
 

@@ -78,3 +78,15 @@ static ACTOR_OBS_SCALE: [f32; 63] = [
     2048.0, 2048.0, 2048.0, 2048.0, 2048.0, 2048.0, 2048.0, 2048.0, 2048.0, 2048.0, 2048.0, 2048.0,
     2048.0, 2048.0, 2048.0,
 ];
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn tables_validate_and_a_step_runs() {
+        let mut runner = super::runner().expect("the generated tables validate");
+        let out = runner
+            .step([0.3, 0.0, 0.0], &[0.0; 42])
+            .expect("a step runs");
+        assert!(out.q_target_rad.iter().all(|q| q.is_finite()));
+    }
+}

@@ -230,3 +230,77 @@ fn closed_loop_in_the_simulator_matches_f32() {
     assert!((f.mean_vx_m_s - x.mean_vx_m_s).abs() < 0.01, "{f:?} {x:?}");
     assert_eq!(f.falls_per_robot, x.falls_per_robot, "{f:?} {x:?}");
 }
+
+#[test]
+fn onnx_matmul_add_graphs_import_like_gemm() {
+    use policy_codegen::onnx::{float_tensor, GraphProto, ModelProto, NodeProto, ValueInfoProto};
+    // A PyTorch-style export without Gemm: MatMul with W^T ([in, out]) then Add, Elu between.
+    let spec = RandomSpec {
+        seed: 9,
+        actor_hidden: vec![24],
+        output_gain: 1.0,
+        ..Default::default()
+    };
+    let mut policy = random_policy(&spec);
+    policy.estimator = Default::default();
+    policy.memory = Default::default();
+    policy.actor = random_policy(&RandomSpec {
+        estimator_hidden: None,
+        memory_latent: 0,
+        ..spec.clone()
+    })
+    .actor;
+    assert_eq!(policy.actor.in_dim(), ACTOR_OBS_DIM);
+    let node = |op: &str, inputs: &[&str], output: &str| NodeProto {
+        input: inputs.iter().map(|s| s.to_string()).collect(),
+        output: vec![output.into()],
+        name: output.into(),
+        op_type: op.into(),
+        attribute: vec![],
+    };
+    let mut initializer = Vec::new();
+    let mut nodes = Vec::new();
+    let mut current = "obs".to_string();
+    for (k, l) in policy.actor.layers.iter().enumerate() {
+        let mut wt = vec![0.0; l.weight.len()];
+        for r in 0..l.out_dim {
+            for c in 0..l.in_dim {
+                wt[c * l.out_dim + r] = l.weight[r * l.in_dim + c];
+            }
+        }
+        initializer.push(float_tensor(&format!("w{k}"), &[l.in_dim, l.out_dim], &wt));
+        initializer.push(float_tensor(&format!("b{k}"), &[l.out_dim], &l.bias));
+        nodes.push(node(
+            "MatMul",
+            &[&current, &format!("w{k}")],
+            &format!("m{k}"),
+        ));
+        nodes.push(node(
+            "Add",
+            &[&format!("m{k}"), &format!("b{k}")],
+            &format!("y{k}"),
+        ));
+        current = format!("y{k}");
+        if k + 1 < policy.actor.layers.len() {
+            nodes.push(node("Elu", &[&current], &format!("e{k}")));
+            current = format!("e{k}");
+        }
+    }
+    let model = ModelProto {
+        ir_version: 8,
+        producer_name: "test".into(),
+        graph: Some(GraphProto {
+            node: nodes,
+            name: "actor".into(),
+            initializer,
+            input: vec![ValueInfoProto { name: "obs".into() }],
+            output: vec![ValueInfoProto { name: current }],
+        }),
+        opset_import: vec![],
+    };
+    let imported = onnx::import(&prost::Message::encode_to_vec(&model)).unwrap();
+    assert_eq!(imported, policy);
+    let q = quantize_default(&imported).unwrap();
+    let report = compare(&imported, &q, &records::synthetic(300, 4)).unwrap();
+    assert!(report.max_abs_diff <= 2e-3, "{report:?}");
+}

@@ -87,6 +87,9 @@ impl<P: JointPlant> Harness<P> {
         for bus in &mut self.rig.buses {
             bus.set_time(now);
         }
+        if let Some(base) = self.plant.base_state() {
+            self.base = base;
+        }
         let b = self.base;
         self.imu.sample(
             now,

@@ -35,6 +35,12 @@ pub trait JointPlant {
     fn joint_state(&self, joint: usize) -> JointState;
     /// The drive's setpoint for `joint`; `None` = torque off (power stage disabled).
     fn set_setpoint(&mut self, joint: usize, setpoint: Option<CspSetpoint>);
+    /// The base's motion when the plant simulates it (rigid-body physics); the harness then
+    /// feeds it to the IMU model at every tick. `None` (the default): the harness keeps
+    /// [`crate::harness::Harness::base`] as the caller sets it.
+    fn base_state(&self) -> Option<crate::harness::BaseState> {
+        None
+    }
 }
 
 /// Independent joints: inertia, viscous friction, the CSP law; no gravity or contact.

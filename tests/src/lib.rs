@@ -1,0 +1,17 @@
+//! `sil-tests`: software-in-the-loop scenarios. The controller core of the firmware,
+//! unchanged, runs against host-sim's rigid-body robot through hal-mock: CAN frames to and
+//! from 18 emulated CiA 402 drives, an IMU model fed by the simulated base, CRSF bytes from
+//! an emulated RC link.
+//!
+//! - [`sim_plant::SimPlant`]: the simulated robot as the drives' joint plant;
+//! - [`base_motion`]: the simulated base as the IMU senses it (frames, acceleration);
+//! - [`trace::Trace`]: what a run records, and the measures the scenarios assert on;
+//! - [`sil::Sil`]: the rig and the scenario steps (boot, stand up, run until a mode).
+//!
+//! The scenarios themselves are the integration tests in `tests/`.
+#![warn(missing_docs)]
+
+pub mod base_motion;
+pub mod sil;
+pub mod sim_plant;
+pub mod trace;

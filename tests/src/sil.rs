@@ -1,0 +1,108 @@
+//! One software-in-the-loop rig: hal-mock's harness (controller core, CAN buses, 18
+//! CiA 402 drive emulators, IMU, RC) over host-sim's physics, with the scenario steps the
+//! tests share (boot, stand up, run until a mode).
+
+use hal_mock::harness::Harness;
+use hexapod_core::control::{NnPolicy, Policy};
+use hexapod_core::controller::{ControllerConfig, ZeroPolicy};
+use hexapod_core::nn::Kernel;
+use hexapod_core::supervisor::Mode;
+use hexapod_core::timing::POLICY_DT_S;
+
+use crate::sim_plant::{PlantError, SimPlant};
+
+/// The generated fixed-point policy as the control step runs it.
+pub type GeneratedPolicy = NnPolicy<'static, { hexapod_policy::SCRATCH_WORDS }>;
+
+/// The generated policy (`firmware/policy`); `None` if it does not validate.
+pub fn generated_policy() -> Option<GeneratedPolicy> {
+    GeneratedPolicy::new(&hexapod_policy::POLICY, Kernel::Native)
+}
+
+/// True when `firmware/policy` was generated from a trained checkpoint (not the randomly
+/// initialized one it starts from).
+pub fn policy_is_trained() -> bool {
+    !hexapod_policy::SOURCE_CHECKPOINT.ends_with("random-init")
+}
+
+/// The physics closure the harness calls every 5 ms.
+pub fn physics(plant: &mut SimPlant, _dt_s: f32) {
+    plant.step();
+}
+
+/// A SIL rig.
+pub struct Sil {
+    /// Controller, buses, drives, sensors and the simulated robot.
+    pub h: Harness<SimPlant>,
+    /// The controller's parameters.
+    pub config: ControllerConfig,
+}
+
+impl Sil {
+    /// The robot sitting on flat ground, drives powered on, controller not started;
+    /// `seed` drives every random source (bus loss dice, IMU noise).
+    pub fn new(seed: u64) -> Result<Self, PlantError> {
+        let config = ControllerConfig::default();
+        let h = Harness::new(SimPlant::sitting()?, config, seed);
+        Ok(Self { h, config })
+    }
+
+    /// The supervisor's mode.
+    pub fn mode(&self) -> Mode {
+        self.h.controller.mode()
+    }
+
+    /// Simulated time, s.
+    pub fn time_s(&self) -> f32 {
+        self.h.now_us as f32 * 1e-6
+    }
+
+    /// The simulated robot.
+    pub fn plant(&self) -> &SimPlant {
+        &self.h.plant
+    }
+
+    /// Runs control cycles with `policy` for `seconds`.
+    pub fn run<P: Policy>(&mut self, seconds: f32, policy: &mut P) {
+        self.h.run(seconds, policy, &mut physics);
+    }
+
+    /// Runs control cycles until `done(mode)` or `max_s` passed; true when `done`.
+    pub fn run_until<P: Policy>(
+        &mut self,
+        max_s: f32,
+        policy: &mut P,
+        done: impl Fn(Mode) -> bool,
+    ) -> bool {
+        let cycles = (max_s / POLICY_DT_S).round() as usize;
+        for _ in 0..cycles {
+            if done(self.mode()) {
+                return true;
+            }
+            self.h.cycle(policy, &mut physics);
+        }
+        done(self.mode())
+    }
+
+    /// Starts the controller and waits until the drives are configured (`Disabled`).
+    pub fn boot(&mut self) -> Result<(), Mode> {
+        self.h.start(&mut physics);
+        if self.run_until(2.0, &mut ZeroPolicy, |m| m == Mode::Disabled) {
+            Ok(())
+        } else {
+            Err(self.mode())
+        }
+    }
+
+    /// Boots, arms and stands up with the zero policy until the supervisor hands over to
+    /// the policy (`Walking`).
+    pub fn stand_up(&mut self) -> Result<(), Mode> {
+        self.boot()?;
+        self.h.rc.set_arm(true);
+        if self.run_until(5.0, &mut ZeroPolicy, |m| m == Mode::Walking) {
+            Ok(())
+        } else {
+            Err(self.mode())
+        }
+    }
+}

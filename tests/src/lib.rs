@@ -5,6 +5,7 @@
 //!
 //! - [`sim_plant::SimPlant`]: the simulated robot as the drives' joint plant;
 //! - [`base_motion`]: the simulated base as the IMU senses it (frames, acceleration);
+//! - [`gait_policy::GaitPolicy`]: a scripted tripod gait that walks through the loop;
 //! - [`trace::Trace`]: what a run records, and the measures the scenarios assert on;
 //! - [`sil::Sil`]: the rig and the scenario steps (boot, stand up, run until a mode).
 //!
@@ -12,6 +13,7 @@
 #![warn(missing_docs)]
 
 pub mod base_motion;
+pub mod gait_policy;
 pub mod sil;
 pub mod sim_plant;
 pub mod trace;

@@ -155,12 +155,14 @@ fn torch_times(batch: usize, reps: usize, threads: usize) -> anyhow::Result<(f64
 fn main() -> anyhow::Result<()> {
     let args = parse_args()?;
     let kept = host_train::alloc::keep_freed_memory();
+    host_train::threads::single_threaded_elementwise();
     let threads = candle_core::utils::get_num_threads();
     println!(
-        "learner benchmark: batch {}, median of {} reps, {} threads, mimalloc purging {}",
+        "learner benchmark: batch {}, median of {} reps, {} threads (candle element-wise pool: {}), mimalloc purging {}",
         args.batch,
         args.reps,
         threads,
+        std::env::var("CANDLE_NUM_THREADS").unwrap_or_default(),
         if kept { "off" } else { "on" }
     );
     let ppo = candle_ppo_step(args.batch, args.reps)?;

@@ -13,3 +13,4 @@ pub mod metrics;
 pub mod nn;
 pub mod priors;
 pub mod runner;
+pub mod threads;

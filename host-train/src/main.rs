@@ -26,6 +26,7 @@ enum Command {
 
 fn main() -> anyhow::Result<()> {
     host_train::alloc::keep_freed_memory();
+    host_train::threads::single_threaded_elementwise();
     let cli = Cli::parse();
     match cli.command {
         Command::Train(args) => cli::train::run(args),

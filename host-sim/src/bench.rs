@@ -1,6 +1,9 @@
 //! The speed benchmark: rapier physics steps/s (1 robot, 1 thread) and environment steps/s
 //! (N robots, several threads) on flat ground and on a rough heightfield, with MuJoCo
 //! stepping the same robot from the same URDF in the same run, and the ratios.
+//!
+//! Single-robot rates are per second of the stepping thread's CPU time (both simulators),
+//! so they hold on a machine whose cores are shared; environment rates are wall-clock.
 
 use crate::config::EnvConfig;
 use crate::env::HexapodEnv;
@@ -37,6 +40,15 @@ pub struct BenchArgs {
     pub no_mujoco: bool,
 }
 
+/// CPU time of the calling thread, s: unlike wall time, it does not count the time other
+/// processes hold the core, so rates stay comparable on a shared machine.
+fn thread_cpu_s() -> f64 {
+    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: `ts` is a valid, writable timespec; the clock id is a constant Linux supports.
+    unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+}
+
 struct SingleResult {
     steps_per_s: f64,
     contacts: f64,
@@ -52,12 +64,12 @@ fn time_single(ground: rapier3d::prelude::Collider, spawn_z: f32, steps: usize, 
     }
     let gait = reference_gait();
     let mut contacts = 0usize;
-    let start = Instant::now();
+    let start_cpu_s = thread_cpu_s();
     for k in 0..steps {
         robot.step(&gait.joint_targets(k as f32 * PHYSICS_DT_S));
         contacts += robot.num_contact_points();
     }
-    let elapsed = start.elapsed().as_secs_f64();
+    let elapsed = thread_cpu_s() - start_cpu_s;
     let s = robot.state();
     let upright = s.base_quat_xyzw[0].abs() < 0.2 && s.base_quat_xyzw[1].abs() < 0.2 && s.base_pos_world_m[2] - spawn_z > -0.15;
     Ok(SingleResult { steps_per_s: steps as f64 / elapsed, contacts: contacts as f64 / steps as f64, upright })

@@ -1,12 +1,15 @@
 //! One simulated robot in its own rapier world: the URDF multibody on the ground, the
 //! joint drives (CSP law at the physics rate), state read-out, contacts and collisions.
 //!
-//! Solver contacts are made only by the feet. Trunk, thigh and shank colliders are sensors:
-//! they report touching the ground (collision flags, penalties, trunk termination) without
-//! entering the contact solver, which keeps a step cheap.
+//! Solver contacts are made only by the feet. The trunk, thigh and shank collision shapes of
+//! the URDF are taken out of the rapier world and kept as probes: once per policy step they
+//! are tested against the ground shape for the collision flags (penalties, trunk
+//! termination), so they cost nothing in the physics steps in between.
 
 use crate::urdf_model::UrdfModel;
-use hexapod_core::robot::{JOINT_NAMES, NUM_JOINTS, NUM_LEGS, TORQUE_LIMIT_NM, VELOCITY_LIMIT_RAD_S};
+use hexapod_core::robot::{
+    JOINT_NAMES, NUM_JOINTS, NUM_LEGS, Q_MAX_RAD, Q_MIN_RAD, TORQUE_LIMIT_NM, VELOCITY_LIMIT_RAD_S,
+};
 use hexapod_core::timing::{csp_torque_nm, CSP_KP1_PER_S, CSP_KP2_NMS_PER_RAD, PHYSICS_DT_S};
 use rapier3d::prelude::*;
 use rapier3d_urdf::{UrdfLoaderOptions, UrdfMultibodyOptions, UrdfRobot};
@@ -63,6 +66,31 @@ pub struct ContactState {
     pub shanks: [bool; NUM_LEGS],
 }
 
+/// Stiffness of a joint's mechanical stop beyond its limit, N m/rad.
+pub const JOINT_STOP_STIFFNESS_NM_PER_RAD: f32 = 500.0;
+/// Damping of a joint's mechanical stop while beyond its limit, N m s/rad.
+pub const JOINT_STOP_DAMPING_NMS_PER_RAD: f32 = 5.0;
+
+/// Torque of the mechanical stop of joint `j`: zero inside the URDF limits, a stiff damped
+/// spring beyond them (explicit; stable at the 5 ms step with the drives' armature).
+pub fn joint_stop_torque_nm(j: usize, q_rad: f32, qdot_rad_s: f32) -> f32 {
+    let over = if q_rad > Q_MAX_RAD[j] {
+        q_rad - Q_MAX_RAD[j]
+    } else if q_rad < Q_MIN_RAD[j] {
+        q_rad - Q_MIN_RAD[j]
+    } else {
+        return 0.0;
+    };
+    -JOINT_STOP_STIFFNESS_NM_PER_RAD * over - JOINT_STOP_DAMPING_NMS_PER_RAD * qdot_rad_s
+}
+
+/// A link shape kept out of the physics and tested against the ground on demand.
+struct Probe {
+    body: RigidBodyHandle,
+    local_pose: Pose,
+    shape: SharedShape,
+}
+
 /// A robot in its own physics world.
 pub struct RobotWorld {
     world: PhysicsWorld,
@@ -73,9 +101,8 @@ pub struct RobotWorld {
     parent_body: [RigidBodyHandle; NUM_JOINTS],
     axis_local: [Vector; NUM_JOINTS],
     feet: [ColliderHandle; NUM_LEGS],
-    thighs: [ColliderHandle; NUM_LEGS],
-    shanks: [ColliderHandle; NUM_LEGS],
-    trunk: ColliderHandle,
+    /// Trunk, thighs (6), shanks (6): shapes tested against the ground on demand.
+    probes: Vec<Probe>,
     ground: ColliderHandle,
     link_bodies: Vec<RigidBodyHandle>,
     nominal_mass: Vec<MassProperties>,
@@ -164,9 +191,18 @@ impl RobotWorld {
             feet[leg] = foot.ok_or_else(|| structure(format!("leg {leg}: shank has no foot sphere")))?;
             shanks[leg] = shank.ok_or_else(|| structure(format!("leg {leg}: shank has no cylinder")))?;
         }
-        // Only feet enter the contact solver.
+        // Only feet enter the contact solver; the other shapes become probes.
+        let mut probes = Vec::with_capacity(1 + 2 * NUM_LEGS);
         for handle in std::iter::once(trunk).chain(thighs).chain(shanks) {
-            world.colliders[handle].set_sensor(true);
+            let collider = world
+                .colliders
+                .remove(handle, &mut world.islands, &mut world.bodies, &mut world.soft_bodies, false)
+                .ok_or_else(|| structure("collision shape vanished".into()))?;
+            probes.push(Probe {
+                body: collider.parent().ok_or_else(|| structure("collision shape without a link".into()))?,
+                local_pose: collider.position_wrt_parent().copied().unwrap_or(Pose::IDENTITY),
+                shape: collider.shared_shape().clone(),
+            });
         }
         for handle in feet {
             let c = &mut world.colliders[handle];
@@ -190,6 +226,12 @@ impl RobotWorld {
             for j in 0..NUM_JOINTS {
                 mb.armature_mut()[dof_of_joint[j]] = model.armature_kg_m2;
                 mb.damping_mut()[dof_of_joint[j]] = 0.0;
+                // Joint stops are modelled in `joint_stop_torque_nm` (explicit, only when
+                // beyond a limit): rapier's limit constraint would cost a mass-matrix solve per
+                // joint per step even far from the limit.
+                if let Some(link) = mb.link_mut(link_of_joint[j]) {
+                    link.joint.data.limit_axes = JointAxesMask::empty();
+                }
             }
         }
         let link_bodies: Vec<RigidBodyHandle> = handles.links.iter().map(|l| l.body).collect();
@@ -208,9 +250,7 @@ impl RobotWorld {
             parent_body,
             axis_local,
             feet,
-            thighs,
-            shanks,
-            trunk,
+            probes,
             ground,
             link_bodies,
             nominal_mass,
@@ -314,11 +354,15 @@ impl RobotWorld {
                 self.drives.motor_strength[j],
             );
         }
-        self.apply_joint_torques();
+        let mut applied = self.torque_nm;
+        for j in 0..NUM_JOINTS {
+            applied[j] += joint_stop_torque_nm(j, state.q_rad[j], state.qdot_rad_s[j]);
+        }
+        self.apply_joint_torques(&applied);
         self.world.step();
     }
 
-    fn apply_joint_torques(&mut self) {
+    fn apply_joint_torques(&mut self, torque_nm: &[f32; NUM_JOINTS]) {
         for j in 0..NUM_JOINTS {
             let h = self.child_body[j];
             let rb = &mut self.world.bodies[h];
@@ -329,7 +373,7 @@ impl RobotWorld {
         for j in 0..NUM_JOINTS {
             let child = &self.world.bodies[self.child_body[j]];
             let axis_world = child.rotation() * self.axis_local[j];
-            let torque = axis_world * self.torque_nm[j];
+            let torque = axis_world * torque_nm[j];
             self.world.bodies[self.child_body[j]].add_torque(torque, true);
             self.world.bodies[self.parent_body[j]].add_torque(-torque, true);
         }
@@ -355,10 +399,21 @@ impl RobotWorld {
                     c.foot_force_world_n[leg] = [f.x, f.y, f.z];
                 }
             }
-            c.thighs[leg] = np.intersection_pair(self.thighs[leg], self.ground).unwrap_or(false);
-            c.shanks[leg] = np.intersection_pair(self.shanks[leg], self.ground).unwrap_or(false);
         }
-        c.trunk = np.intersection_pair(self.trunk, self.ground).unwrap_or(false);
+        let ground = &self.world.colliders[self.ground];
+        let touches = |probe: &Probe| {
+            let pose = *self.world.bodies[probe.body].position() * probe.local_pose;
+            // parry's contact query (GJK/EPA); its boolean intersection test misreports an
+            // upright cylinder just above a cuboid as touching.
+            rapier3d::parry::query::contact(&pose, &*probe.shape, ground.position(), ground.shape(), 0.0)
+                .map(|hit| hit.is_some_and(|c| c.dist <= 0.0))
+                .unwrap_or(false)
+        };
+        c.trunk = touches(&self.probes[0]);
+        for leg in 0..NUM_LEGS {
+            c.thighs[leg] = touches(&self.probes[1 + leg]);
+            c.shanks[leg] = touches(&self.probes[1 + NUM_LEGS + leg]);
+        }
         c
     }
 
@@ -465,6 +520,43 @@ mod tests {
         assert!((m - (TOTAL_MASS_KG * 1.1 + 5.0)).abs() < 1e-3, "{m}");
         r.set_mass_properties(&[], 0.0, [0.0; 3]);
         assert!((r.total_mass_kg() - TOTAL_MASS_KG).abs() < 1e-3);
+    }
+
+    #[test]
+    fn collision_flags_follow_the_link_shapes() {
+        let mut r = flat_robot();
+        r.reset([0.0, 0.0, 0.31], [0.0, 0.0, 0.0, 1.0], &Q0_RAD);
+        let c = r.contacts();
+        assert!(!c.trunk && !c.thighs.iter().any(|t| *t) && !c.shanks.iter().any(|s| *s), "{c:?}");
+        // Legs stretched out flat with the base low: thighs and shanks lie on the ground.
+        r.reset([0.0, 0.0, 0.01], [0.0, 0.0, 0.0, 1.0], &[0.0; NUM_JOINTS]);
+        let c = r.contacts();
+        assert!(c.trunk, "trunk 5 cm into the ground");
+        assert!(c.thighs.iter().all(|t| *t) && c.shanks.iter().all(|s| *s), "{c:?}");
+        // Only the trunk low, legs folded up above it.
+        let mut q = Q0_RAD;
+        for leg in 0..NUM_LEGS {
+            q[3 * leg + 1] = -0.8;
+            q[3 * leg + 2] = 0.0;
+        }
+        r.reset([0.0, 0.0, 0.05], [0.0, 0.0, 0.0, 1.0], &q);
+        let c = r.contacts();
+        assert!(c.trunk && !c.shanks.iter().any(|s| *s), "{c:?}");
+    }
+
+    #[test]
+    fn joint_stops_hold_a_joint_driven_past_its_limit() {
+        // In free fall, so only the drive and the stop act on the hip.
+        let mut r = flat_robot();
+        r.reset([0.0, 0.0, 3.0], [0.0, 0.0, 0.0, 1.0], &Q0_RAD);
+        let mut target = Q0_RAD;
+        target[0] = 2.0; // far beyond the hip's 0.785 rad limit
+        for _ in 0..100 {
+            r.step(&target);
+        }
+        let q = r.state().q_rad[0];
+        let limit = hexapod_core::robot::Q_MAX_RAD[0];
+        assert!(q > limit && q < limit + 0.1, "hip at {q} rad, limit {limit}");
     }
 
     #[test]

@@ -43,8 +43,13 @@ impl BaseAccel {
 
     /// Updates with the velocity after a step of `dt_s`.
     pub fn update(&mut self, vel_world_m_s: [f32; 3], dt_s: f32) {
-        for k in 0..3 {
-            self.acc_world_m_s2[k] = (vel_world_m_s[k] - self.prev_vel_world_m_s[k]) / dt_s;
+        for ((a, v), v_prev) in self
+            .acc_world_m_s2
+            .iter_mut()
+            .zip(vel_world_m_s)
+            .zip(self.prev_vel_world_m_s)
+        {
+            *a = (v - v_prev) / dt_s;
         }
         self.prev_vel_world_m_s = vel_world_m_s;
     }
@@ -72,7 +77,11 @@ mod tests {
         let b = base_state(&s, [0.0; 3]);
         assert_eq!(b.orientation, [h, h, 0.0, 0.0]);
         let [wx, wy, wz] = b.ang_vel_base_rad_s;
-        assert!(wx.abs() < 1e-6 && (wy - 1.0).abs() < 1e-6 && wz.abs() < 1e-6, "{:?}", b.ang_vel_base_rad_s);
+        assert!(
+            wx.abs() < 1e-6 && (wy - 1.0).abs() < 1e-6 && wz.abs() < 1e-6,
+            "{:?}",
+            b.ang_vel_base_rad_s
+        );
     }
 
     #[test]

@@ -52,7 +52,11 @@ impl SimPlant {
         let model = UrdfModel::load(&default_urdf_path())?;
         let ground = Terrain::generate(&TerrainConfig::default()).collider();
         let mut world = RobotWorld::new(&model, ground, SOLVER_ITERATIONS)?;
-        world.reset([0.0, 0.0, sitting_height_m()], [0.0, 0.0, 0.0, 1.0], &Q_SIT_RAD);
+        world.reset(
+            [0.0, 0.0, sitting_height_m()],
+            [0.0, 0.0, 0.0, 1.0],
+            &Q_SIT_RAD,
+        );
         Ok(Self::over(world))
     }
 
@@ -101,12 +105,13 @@ impl SimPlant {
     /// One physics step with the drives' current setpoints.
     pub fn step(&mut self) {
         let mut targets = self.state.q_rad;
-        for j in 0..NUM_JOINTS {
-            // The drives are configured with the core's velocity and torque limits, which
-            // host-sim's drive law uses; a drive without setpoint has its power stage off.
-            self.world.drives.motor_strength[j] = match self.setpoints[j] {
+        // The drives are configured with the core's velocity and torque limits, which
+        // host-sim's drive law uses; a drive without setpoint has its power stage off.
+        let strength = &mut self.world.drives.motor_strength;
+        for ((target, s), sp) in targets.iter_mut().zip(strength).zip(&self.setpoints) {
+            *s = match sp {
                 Some(sp) => {
-                    targets[j] = sp.q_target_rad;
+                    *target = sp.q_target_rad;
                     1.0
                 }
                 None => 0.0,
@@ -116,7 +121,8 @@ impl SimPlant {
         self.steps += 1;
         self.state = self.world.state();
         self.contacts = self.world.contacts();
-        self.accel.update(self.state.base_lin_vel_world_m_s, PHYSICS_DT_S);
+        self.accel
+            .update(self.state.base_lin_vel_world_m_s, PHYSICS_DT_S);
         self.trace.samples.push(Sample::new(
             self.time_s(),
             &self.state,

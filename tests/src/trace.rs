@@ -86,13 +86,19 @@ impl Trace {
     /// Mean forward (world x) speed from `t0_s` to `t1_s`, m/s, from the displacement.
     pub fn mean_speed_x_m_s(&self, t0_s: f32, t1_s: f32) -> Option<f32> {
         let a = self.since(t0_s).first()?;
-        let b = self.since(t0_s).iter().take_while(|s| s.t_s <= t1_s).last()?;
+        let b = self
+            .since(t0_s)
+            .iter()
+            .take_while(|s| s.t_s <= t1_s)
+            .last()?;
         (b.t_s > a.t_s).then(|| (b.base_pos_world_m[0] - a.base_pos_world_m[0]) / (b.t_s - a.t_s))
     }
 
     /// Writes the trace as CSV (for plots when a scenario fails).
     pub fn to_csv(&self) -> String {
-        let mut out = String::from("t_s,x_m,y_m,z_m,vx_m_s,vy_m_s,vz_m_s,tilt_rad,trunk_contact,powered_joints\n");
+        let mut out = String::from(
+            "t_s,x_m,y_m,z_m,vx_m_s,vy_m_s,vz_m_s,tilt_rad,trunk_contact,powered_joints\n",
+        );
         for s in &self.samples {
             let [x, y, z] = s.base_pos_world_m;
             let [vx, vy, vz] = s.base_vel_world_m_s;

@@ -4,7 +4,9 @@
 use hal_mock::candump::{parse_line, LogEntry};
 use hexapod_core::canopen::cia402::PowerState;
 use hexapod_core::canopen::cob::{NMT, RPDO_BASE};
-use hexapod_core::robot::{can_bus, can_node_id, NUM_JOINTS};
+use hexapod_core::robot::{
+    can_bus, can_node_id, NUM_JOINTS, TORQUE_LIMIT_NM, VELOCITY_LIMIT_RAD_S,
+};
 use sil_tests::sil::Sil;
 
 /// Index of the first entry at or after `from` that matches `pred`.
@@ -18,9 +20,27 @@ fn boots_and_enables_18_drives_only_through_frames() {
     sil.h.rig.record();
     sil.stand_up().expect("stands up");
     for d in &sil.h.rig.drives {
-        assert_eq!(d.power_state(), PowerState::OperationEnabled, "node {}", d.node_id());
+        assert_eq!(
+            d.power_state(),
+            PowerState::OperationEnabled,
+            "node {}",
+            d.node_id()
+        );
     }
     assert_eq!(sil.plant().powered_joints(), NUM_JOINTS);
+    // The limits the master configured by SDO are the core's, which the simulated drive law
+    // applies.
+    for (j, d) in sil.h.rig.drives.iter().enumerate() {
+        let sp = d.setpoint().expect("torque on");
+        assert!(
+            (sp.vel_limit_rad_s - VELOCITY_LIMIT_RAD_S[j]).abs() < 0.01 * VELOCITY_LIMIT_RAD_S[j],
+            "{sp:?}"
+        );
+        assert!(
+            (sp.torque_limit_nm - TORQUE_LIMIT_NM[j]).abs() < 0.01 * TORQUE_LIMIT_NM[j],
+            "{sp:?}"
+        );
+    }
 
     let log: Vec<LogEntry> = sil
         .h
@@ -42,7 +62,9 @@ fn boots_and_enables_18_drives_only_through_frames() {
         .unwrap_or_else(|| panic!("node {node}: no SDO write 0x6060 = 8"));
         // ... confirmed by the drive.
         first_from(&log, mode_write, |e| {
-            on_bus(e) && e.frame.cob_id() == 0x580 + node16 && e.frame.payload()[..4] == [0x60, 0x60, 0x60, 0x00]
+            on_bus(e)
+                && e.frame.cob_id() == 0x580 + node16
+                && e.frame.payload()[..4] == [0x60, 0x60, 0x60, 0x00]
         })
         .unwrap_or_else(|| panic!("node {node}: 0x6060 write not confirmed"));
         // NMT start (of this node or all nodes) after the configuration.

@@ -30,9 +30,16 @@ fn records_a_physics_run_as_a_candump_log() {
         .lines()
         .map(|l| parse_line(l).unwrap_or_else(|e| panic!("{e}")))
         .collect();
-    assert!(entries.windows(2).all(|w| w[0].time_us <= w[1].time_us), "time goes back");
+    assert!(
+        entries.windows(2).all(|w| w[0].time_us <= w[1].time_us),
+        "time goes back"
+    );
     let syncs = entries.iter().filter(|e| e.frame.cob_id() == SYNC).count() as u32;
-    assert_eq!(syncs, 2 * sil.h.controller.stats.cycles, "one SYNC per bus and cycle");
+    assert_eq!(
+        syncs,
+        2 * sil.h.controller.stats.cycles,
+        "one SYNC per bus and cycle"
+    );
     // The EMCY of the faulty drive: 0x080 + node id, error code first (little endian).
     let node = u16::from(can_node_id(FAULTY_JOINT));
     let emcy = entries

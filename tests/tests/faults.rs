@@ -38,9 +38,17 @@ fn assert_safe_sit_down(trace: &Trace, t_fault_s: f32, min_duration_s: f32) {
     let sink = trace.max_sink_speed_m_s(t_fault_s, off.t_s);
     assert!(sink < 0.15, "sinks at {sink} m/s before torque off");
     if let Some(c) = trace.first_trunk_contact(t_fault_s) {
-        assert!(c.t_s >= off.t_s, "trunk touched at {:.2} s, torque off at {:.2} s", c.t_s, off.t_s);
+        assert!(
+            c.t_s >= off.t_s,
+            "trunk touched at {:.2} s, torque off at {:.2} s",
+            c.t_s,
+            off.t_s
+        );
         let v = -c.base_vel_world_m_s[2];
-        assert!(v < MAX_TRUNK_TOUCHDOWN_M_S, "trunk hits the ground at {v} m/s");
+        assert!(
+            v < MAX_TRUNK_TOUCHDOWN_M_S,
+            "trunk hits the ground at {v} m/s"
+        );
     }
 }
 
@@ -55,13 +63,24 @@ fn rc_failsafe_while_walking_sits_down_then_cuts_torque() {
     sil.h.rc.set_lost(true);
     sil.run(0.5, &mut policy);
     assert!(
-        matches!(sil.mode(), Mode::SafeSitDown { fault: Fault::RcLost, .. }),
+        matches!(
+            sil.mode(),
+            Mode::SafeSitDown {
+                fault: Fault::RcLost,
+                ..
+            }
+        ),
         "{:?}",
         sil.mode()
     );
     assert!(sil.run_until(7.0, &mut policy, |m| matches!(m, Mode::Faulted { .. })));
     sil.run(2.0, &mut policy);
-    assert_eq!(sil.mode(), Mode::Faulted { fault: Fault::RcLost });
+    assert_eq!(
+        sil.mode(),
+        Mode::Faulted {
+            fault: Fault::RcLost
+        }
+    );
     assert_safe_sit_down(&sil.plant().trace, t_fault, 5.0);
 }
 
@@ -73,7 +92,13 @@ fn drive_emcy_lowers_on_the_other_drives_without_dropping_the_trunk() {
     sil.h.rig.inject_drive_fault(13, 0x2310);
     sil.run(0.1, &mut ZeroPolicy);
     assert!(
-        matches!(sil.mode(), Mode::SafeSitDown { fault: Fault::Drive { joint: 13, .. }, .. }),
+        matches!(
+            sil.mode(),
+            Mode::SafeSitDown {
+                fault: Fault::Drive { joint: 13, .. },
+                ..
+            }
+        ),
         "{:?}",
         sil.mode()
     );
@@ -88,7 +113,10 @@ fn drive_emcy_lowers_on_the_other_drives_without_dropping_the_trunk() {
         .take_while(|s| s.t_s < off)
         .map(|s| s.tilt_rad)
         .fold(0.0, f32::max);
-    assert!(tilt < 0.2, "the body tips {tilt} rad while lowering on five legs");
+    assert!(
+        tilt < 0.2,
+        "the body tips {tilt} rad while lowering on five legs"
+    );
     assert_safe_sit_down(trace, t_fault, 5.0);
 }
 
@@ -99,7 +127,10 @@ fn tilt_beyond_the_limit_cuts_torque() {
     // Tip the robot over: half a metre up, rolled 75 degrees (beyond the 1 rad limit).
     let half = 75f32.to_radians() / 2.0;
     let q = sil.plant().state().q_rad;
-    sil.h.plant.world.reset([0.0, 0.0, 0.5], [half.sin(), 0.0, 0.0, half.cos()], &q);
+    sil.h
+        .plant
+        .world
+        .reset([0.0, 0.0, 0.5], [half.sin(), 0.0, 0.0, half.cos()], &q);
     let t_tip = sil.time_s();
     // The teleport gives the gyro nothing to see and the fall gives the accelerometer no
     // gravity: the estimate needs a few hundred ms. What is checked is the reaction: torque
@@ -147,10 +178,17 @@ fn walk_with_frame_loss(seed: u64, loss: f32) {
     let frames: u64 = sil.h.rig.buses.iter().map(|b| b.stats.frames).sum::<u64>() - frames_before;
     let rate = lost as f32 / frames as f32;
     assert!((rate - loss).abs() < 0.2 * loss, "lost {lost} of {frames}");
-    assert!(sil.h.controller.stats.incomplete_feedback > 0, "loss reached the feedback");
+    assert!(
+        sil.h.controller.stats.incomplete_feedback > 0,
+        "loss reached the feedback"
+    );
     let trace = &sil.plant().trace;
     assert!(trace.first_trunk_contact(t0).is_none());
-    assert!(trace.min_height_m(t0) > 0.2, "sagged to {}", trace.min_height_m(t0));
+    assert!(
+        trace.min_height_m(t0) > 0.2,
+        "sagged to {}",
+        trace.min_height_m(t0)
+    );
 }
 
 #[test]

@@ -26,17 +26,31 @@ fn stands_up_to_the_nominal_height_and_sits_down_before_torque_off() {
     let z = sil.plant().state().base_pos_world_m[2];
     assert!((z - STAND_HEIGHT_M).abs() < 0.02, "standing height {z}");
     let trace = &sil.plant().trace;
-    assert!(trace.first_trunk_contact(0.0).is_none(), "trunk touched while standing up");
-    assert!(trace.samples.iter().all(|s| s.tilt_rad < 0.05), "stand-up tilts the base");
+    assert!(
+        trace.first_trunk_contact(0.0).is_none(),
+        "trunk touched while standing up"
+    );
+    assert!(
+        trace.samples.iter().all(|s| s.tilt_rad < 0.05),
+        "stand-up tilts the base"
+    );
 
     // Arm switch off: sit down (3 s), hold, then torque off.
     let t_off = sil.time_s();
     sil.h.rc.set_arm(false);
-    assert!(sil.run_until(5.0, &mut ZeroPolicy, |m| m == Mode::Disabled), "{:?}", sil.mode());
+    assert!(
+        sil.run_until(5.0, &mut ZeroPolicy, |m| m == Mode::Disabled),
+        "{:?}",
+        sil.mode()
+    );
     sil.run(0.5, &mut ZeroPolicy);
     let trace = &sil.plant().trace;
     let off = *trace.torque_off(t_off).expect("torque goes off");
-    assert!(off.t_s - t_off >= 3.0, "torque off {:.2} s after the switch", off.t_s - t_off);
+    assert!(
+        off.t_s - t_off >= 3.0,
+        "torque off {:.2} s after the switch",
+        off.t_s - t_off
+    );
     assert!(
         (off.height_m() - sit_z).abs() < 0.015,
         "torque off at {} m, seated at {sit_z} m",
@@ -44,7 +58,9 @@ fn stands_up_to_the_nominal_height_and_sits_down_before_torque_off() {
     );
     let sink = trace.max_sink_speed_m_s(t_off, off.t_s);
     assert!(sink < 0.15, "sit-down sinks at {sink} m/s");
-    assert!(trace.first_trunk_contact(t_off).is_none_or(|c| c.t_s >= off.t_s));
+    assert!(trace
+        .first_trunk_contact(t_off)
+        .is_none_or(|c| c.t_s >= off.t_s));
     for d in &sil.h.rig.drives {
         assert_eq!(d.power_state(), PowerState::SwitchOnDisabled);
     }

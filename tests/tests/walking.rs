@@ -2,9 +2,9 @@
 //! ground: no fall; and, once `firmware/policy` comes from a trained checkpoint, a mean
 //! forward speed within 25 % of the command.
 
+use hexapod_core::control::Policy;
 use hexapod_core::controller::ZeroPolicy;
 use hexapod_core::supervisor::Mode;
-use hexapod_core::control::Policy;
 use sil_tests::gait_policy::GaitPolicy;
 use sil_tests::sil::{generated_policy, policy_is_trained, Sil};
 use sil_tests::trace::Trace;
@@ -22,7 +22,13 @@ fn walk_10_s(seed: u64, policy: &mut impl Policy) -> (Trace, f32, f32) {
     let t0 = sil.time_s();
     for _ in 0..20 {
         sil.run(0.5, policy);
-        assert_eq!(sil.mode(), Mode::Walking, "at {:.1} s: {:?}", sil.time_s(), sil.h.controller.master.counters);
+        assert_eq!(
+            sil.mode(),
+            Mode::Walking,
+            "at {:.1} s: {:?}",
+            sil.time_s(),
+            sil.h.controller.master.counters
+        );
     }
     let command = sil.h.controller.rc_state(sil.h.now_us).command;
     assert!(command[0] > 0.25 && command[0] < 0.35, "{command:?}");
@@ -45,10 +51,17 @@ fn walks_10_s_on_a_forward_command_without_falling() {
     let (trace, command, t0) = walk_10_s(41, &mut policy);
     let walk = trace.since(t0);
     assert!(walk.len() >= 2000);
-    assert!(trace.first_trunk_contact(t0).is_none(), "trunk touched the ground");
+    assert!(
+        trace.first_trunk_contact(t0).is_none(),
+        "trunk touched the ground"
+    );
     let tilt = walk.iter().map(|s| s.tilt_rad).fold(0.0, f32::max);
     assert!(tilt < 0.5, "tilted {tilt} rad");
-    assert!(trace.min_height_m(t0) > 0.15, "base down to {}", trace.min_height_m(t0));
+    assert!(
+        trace.min_height_m(t0) > 0.15,
+        "base down to {}",
+        trace.min_height_m(t0)
+    );
     if policy_is_trained() {
         assert_speed(&trace, command, t0);
     }
@@ -65,6 +78,9 @@ fn walks_at_the_commanded_speed() {
 #[test]
 fn the_scripted_tripod_gait_walks_at_the_commanded_speed_through_the_loop() {
     let (trace, command, t0) = walk_10_s(43, &mut GaitPolicy::default());
-    assert!(trace.first_trunk_contact(t0).is_none(), "trunk touched the ground");
+    assert!(
+        trace.first_trunk_contact(t0).is_none(),
+        "trunk touched the ground"
+    );
     assert_speed(&trace, command, t0);
 }

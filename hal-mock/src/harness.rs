@@ -3,7 +3,8 @@
 //!
 //! The physics is a closure the caller passes (`host-sim` steps its world there; tests use
 //! [`crate::plant::JointModel::step`]); it runs every [`PHYSICS_DT_S`]. The base state the
-//! IMU sees is [`Harness::base`], set by the caller from its physics.
+//! IMU sees is [`Harness::base`], set by the caller, or by the plant at every tick when it
+//! simulates the base ([`JointPlant::base_state`], as `sil-tests` does with host-sim).
 
 use hexapod_core::control::Policy;
 use hexapod_core::controller::{Controller, ControllerConfig};

@@ -65,3 +65,32 @@ fn stands_up_to_the_nominal_height_and_sits_down_before_torque_off() {
         assert_eq!(d.power_state(), PowerState::SwitchOnDisabled);
     }
 }
+
+#[test]
+fn a_sideways_push_while_standing_is_absorbed() {
+    let mut sil = Sil::new(22).unwrap();
+    sil.stand_up().expect("stands up");
+    sil.run(0.5, &mut ZeroPolicy);
+    let t_push = sil.time_s();
+    sil.h.plant.push([0.0, 0.5, 0.0]);
+    sil.run(2.0, &mut ZeroPolicy);
+    assert_eq!(sil.mode(), Mode::Walking);
+    let trace = &sil.plant().trace;
+    let tilt = trace
+        .since(t_push)
+        .iter()
+        .map(|s| s.tilt_rad)
+        .fold(0.0, f32::max);
+    assert!(tilt < 0.3, "tilted {tilt} rad");
+    assert!(trace.first_trunk_contact(t_push).is_none());
+    let moved_m = sil.plant().state().base_pos_world_m[1];
+    assert!(
+        moved_m > 0.005,
+        "the push did not reach the body: y {moved_m}"
+    );
+    let z = sil.plant().state().base_pos_world_m[2];
+    assert!(
+        (z - STAND_HEIGHT_M).abs() < 0.02,
+        "standing height {z} after the push"
+    );
+}

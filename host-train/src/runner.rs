@@ -8,7 +8,8 @@ use crate::checkpoint;
 use crate::config::TrainConfig;
 use crate::error::TrainError;
 use crate::metrics::MetricsLog;
-use hexapod_core::obs::{ACTOR_COMMAND, ACTOR_OBS_DIM, COMMAND_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_LIN_VEL, PROPRIO_ANG_VEL, ACTOR_PROPRIO, ANG_VEL_SCALE};
+use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_STATE_DIM};
+use hexapod_core::obs::{ACTOR_COMMAND, ACTOR_OBS_DIM, COMMAND_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_LIN_VEL};
 use host_sim::vec_env::{Observations, VecEnv};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
@@ -150,7 +151,7 @@ impl Runner {
                 let cmd_wz = a[ACTOR_COMMAND.start + 2] / COMMAND_SCALE[2];
                 let vx = p[PRIV_LIN_VEL.start] / LIN_VEL_SCALE;
                 let vy = p[PRIV_LIN_VEL.start + 1] / LIN_VEL_SCALE;
-                let wz = a[ACTOR_PROPRIO.start + PROPRIO_ANG_VEL.start + 2] / ANG_VEL_SCALE;
+                let wz = obs.amp[i * AMP_STATE_DIM + AMP_BASE_ANG_VEL.start + 2];
                 st.lin_vel_error_m_s += (((vx - cmd_x).powi(2) + (vy - cmd_y).powi(2)) as f64).sqrt();
                 st.yaw_rate_error_rad_s += (wz - cmd_wz).abs() as f64;
                 if !act.estimate.is_empty() {

@@ -8,10 +8,8 @@ use crate::config::EnvKind;
 use crate::env::make_env;
 use anyhow::Context;
 use clap::Args;
-use hexapod_core::obs::{
-    ACTOR_OBS_DIM, ACTOR_PROPRIO, ANG_VEL_SCALE, CONTACT_FORCE_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM,
-    PRIV_CONTACT_FORCES, PRIV_LIN_VEL, PROPRIO_ANG_VEL,
-};
+use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_STATE_DIM};
+use hexapod_core::obs::{CONTACT_FORCE_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_CONTACT_FORCES, PRIV_LIN_VEL};
 use hexapod_core::robot::{NUM_LEGS, TRIPOD_A_MASK, TRIPOD_B_MASK};
 use serde::Serialize;
 use std::path::PathBuf;
@@ -118,13 +116,12 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             let act = ppo.act(&obs, true)?;
             let res = env.step(&act.actions);
             for i in 0..n {
-                let a = &obs.actor[i * ACTOR_OBS_DIM..(i + 1) * ACTOR_OBS_DIM];
                 let p = &obs.privileged[i * PRIVILEGED_DIM..(i + 1) * PRIVILEGED_DIM];
                 if step >= SETTLE_STEPS {
                     let v = [
                         p[PRIV_LIN_VEL.start] / LIN_VEL_SCALE,
                         p[PRIV_LIN_VEL.start + 1] / LIN_VEL_SCALE,
-                        a[ACTOR_PROPRIO.start + PROPRIO_ANG_VEL.start + 2] / ANG_VEL_SCALE,
+                        obs.amp[i * AMP_STATE_DIM + AMP_BASE_ANG_VEL.start + 2],
                     ];
                     lin_err += (((v[0] - command[0]).powi(2) + (v[1] - command[1]).powi(2)) as f64).sqrt();
                     yaw_err += (v[2] - command[2]).abs() as f64;

@@ -8,10 +8,9 @@ use crate::env::make_env;
 use crate::metrics::line_plot;
 use anyhow::Context;
 use clap::Args;
-use hexapod_core::amp::{AMP_BASE_HEIGHT, AMP_JOINT_POS, AMP_STATE_DIM};
+use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_BASE_HEIGHT, AMP_JOINT_POS, AMP_STATE_DIM};
 use hexapod_core::obs::{
-    ACTOR_COMMAND, ACTOR_OBS_DIM, ACTOR_PROPRIO, ANG_VEL_SCALE, COMMAND_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM,
-    PRIV_LIN_VEL, PROPRIO_ANG_VEL,
+    ACTOR_COMMAND, ACTOR_OBS_DIM, COMMAND_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_LIN_VEL,
 };
 use hexapod_core::robot::JOINT_NAMES;
 use hexapod_core::timing::POLICY_DT_S;
@@ -85,7 +84,7 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
         let v = [
             p[PRIV_LIN_VEL.start] / LIN_VEL_SCALE,
             p[PRIV_LIN_VEL.start + 1] / LIN_VEL_SCALE,
-            a[ACTOR_PROPRIO.start + PROPRIO_ANG_VEL.start + 2] / ANG_VEL_SCALE,
+            amp[AMP_BASE_ANG_VEL.start + 2],
         ];
         let est = if act.estimate.is_empty() { [f32::NAN; 2] } else { [act.estimate[0] / LIN_VEL_SCALE, act.estimate[1] / LIN_VEL_SCALE] };
         let res = env.step(&act.actions);
@@ -124,7 +123,7 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
     line_plot(&out.join("velocity_tracking.png"), "velocity tracking", "t (s)", &series).map_err(anyhow::Error::msg)?;
     let joint_series: Vec<(String, Vec<(f64, f64)>)> =
         q_series.into_iter().enumerate().map(|(j, s)| (format!("q {}", JOINT_NAMES[j]), s)).collect();
-    line_plot(&out.join("joints_right_front_middle.png"), "joint angles (rad)", "t (s)", &joint_series).map_err(anyhow::Error::msg)?;
+    line_plot(&out.join("joints_rf_rm.png"), "joint angles of RF and RM (rad)", "t (s)", &joint_series).map_err(anyhow::Error::msg)?;
     if !args.no_replay {
         render_replay(&out.join("replay.gif"), &frames).map_err(anyhow::Error::msg)?;
     }

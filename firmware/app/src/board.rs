@@ -19,8 +19,8 @@
 //! (`can_bus`, `can_node_id`); this file only says which FDCAN instance is bus 0 and 1.
 
 use embassy_stm32::peripherals::{
-    DMA1_CH0, DMA1_CH1, DMA1_CH2, EXTI15, FDCAN1, FDCAN2, IWDG1, PA5, PA6, PB0, PB14, PB5,
-    PB6, PD0, PD1, PD14, PD15, PD6, PD7, SPI1, USART2,
+    DMA1_CH0, DMA1_CH1, DMA1_CH2, EXTI15, FDCAN1, FDCAN2, IWDG1, PA5, PA6, PB0, PB14, PB5, PB6,
+    PD0, PD1, PD14, PD15, PD6, PD7, SPI1, USART2,
 };
 use embassy_stm32::time::Hertz;
 use embassy_stm32::{rcc, Config, Peri, PeripheralType, Peripherals};
@@ -99,7 +99,11 @@ pub fn clock_config() -> Config {
 }
 
 /// One CAN bus's peripheral and pins.
-pub struct CanPins<T: PeripheralType + 'static, Rx: PeripheralType + 'static, Tx: PeripheralType + 'static> {
+pub struct CanPins<
+    T: PeripheralType + 'static,
+    Rx: PeripheralType + 'static,
+    Tx: PeripheralType + 'static,
+> {
     /// The FDCAN instance.
     pub fdcan: Peri<'static, T>,
     /// Receive pin (to the transceiver's RXD).

@@ -50,8 +50,8 @@ static RX_QUEUES: [ConstStaticCell<RxBuf<RX_QUEUE_LEN>>; NUM_BUSES] =
     [const { ConstStaticCell::new(RxBuf::new()) }; NUM_BUSES];
 static DRIVERS: [StaticCell<Fdcan>; NUM_BUSES] = [const { StaticCell::new() }; NUM_BUSES];
 
-/// Counters of one bus (saturating at `u32::MAX` in practice never reached), shared by
-/// the control loop, which moves the frames, and the health task.
+/// Counters of one bus (wrapping 32-bit), shared by the control loop, which moves the
+/// frames, and the health task.
 pub struct BusHealth {
     /// Frames handed to the controller core.
     pub rx_frames: AtomicU32,
@@ -294,7 +294,12 @@ pub async fn monitor(bus: usize, regs: pac::can::Fdcan) {
     let health = &HEALTH[bus];
     let mut state = 0;
     let mut ticker = Ticker::every(MONITOR_PERIOD);
-    info!("CAN{}: nodes {}..={}", bus, node_range(bus).0, node_range(bus).1);
+    info!(
+        "CAN{}: nodes {}..={}",
+        bus,
+        node_range(bus).0,
+        node_range(bus).1
+    );
     loop {
         ticker.next().await;
         let ecr = regs.ecr().read();

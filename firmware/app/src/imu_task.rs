@@ -4,8 +4,8 @@
 //!
 //! Time stamps: a burst read after INT1 (several samples when the control step kept the
 //! CPU) gets the read time on its newest sample and the IMU's own ODR deltas backwards
-//! from there, so the attitude filter integrates with the true sample spacing and no two
-//! samples share a stamp (the core drops a sample that is not newer than the previous).
+//! from there ([`crate::imu_stamp`]), so the attitude filter integrates with the true
+//! sample spacing.
 
 use core::sync::atomic::{AtomicU32, Ordering::Relaxed};
 
@@ -22,6 +22,7 @@ use hexapod_core::hal::{Imu, ImuSample};
 use icm426xx::{OutputDataRate, Sample, Timestamp, ICM42688};
 
 use crate::board::IMU_TO_BASE;
+use crate::imu_stamp::{odr_delta_us, stamp_burst};
 
 /// The IMU's SPI device: SPI1 with DMA and its chip select.
 pub type ImuSpi = ExclusiveDevice<Spi<'static, Async, Master>, Output<'static>, Delay>;
@@ -124,36 +125,29 @@ fn to_base((x, y, z): (f32, f32, f32)) -> [f32; 3] {
     IMU_TO_BASE.map(|row| row[0] * x + row[1] * y + row[2] * z)
 }
 
-/// Time since the previous sample, from the packet's ODR delta (nominal when absent or
-/// implausible).
+/// The packet's time since the previous sample, microseconds.
 fn delta_us(sample: &Sample) -> u64 {
-    match sample.timestamp {
-        Timestamp::OdrTimestamp(ticks) => {
-            let us = ticks as u64 * TIMESTAMP_LSB_US;
-            if (PERIOD_US / 4..=PERIOD_US * 4).contains(&us) {
-                us
-            } else {
-                PERIOD_US
-            }
-        }
-        _ => PERIOD_US,
-    }
+    let ticks = match sample.timestamp {
+        Timestamp::OdrTimestamp(ticks) => Some(ticks),
+        _ => None,
+    };
+    odr_delta_us(ticks, TIMESTAMP_LSB_US, PERIOD_US)
 }
 
 /// Stamps a burst (oldest first) whose newest sample was read at `read_us` and queues it.
 fn queue_burst(burst: &[Sample], read_us: u64, last_us: &mut u64) {
-    let span_us: u64 = burst.iter().skip(1).map(delta_us).sum();
-    let mut t_us = read_us.saturating_sub(span_us);
-    for (i, sample) in burst.iter().enumerate() {
-        if i > 0 {
-            t_us += delta_us(sample);
-        }
+    let mut deltas_us = [0; MAX_BURST];
+    for (delta, sample) in deltas_us.iter_mut().zip(burst) {
+        *delta = delta_us(sample);
+    }
+    let mut stamps_us = [0; MAX_BURST];
+    let n = burst.len().min(MAX_BURST);
+    stamp_burst(&deltas_us[..n], read_us, last_us, &mut stamps_us);
+    for (sample, &timestamp_us) in burst.iter().zip(&stamps_us[..n]) {
         let (Some(gyro), Some(accel)) = (sample.gyro, sample.accel) else {
             bump(&STATS.incomplete);
             continue;
         };
-        let timestamp_us = t_us.max(*last_us + 1);
-        *last_us = timestamp_us;
         let out = ImuSample {
             gyro_rad_s: to_base(gyro),
             accel_m_s2: to_base(accel),
@@ -222,7 +216,10 @@ pub async fn imu_task(mut spi: ImuSpi, mut int1: ExtiInput<'static, Async>) {
         info!("IMU: ICM-42688-P ready, 1 kHz");
         let mut errors = 0;
         while errors < MAX_CONSECUTIVE_ERRORS {
-            if with_timeout(INT_TIMEOUT, int1.wait_for_high()).await.is_err() {
+            if with_timeout(INT_TIMEOUT, int1.wait_for_high())
+                .await
+                .is_err()
+            {
                 bump(&STATS.int_timeouts);
             }
             let mut burst = heapless::Vec::new();

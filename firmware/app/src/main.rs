@@ -12,6 +12,7 @@
 mod board;
 mod can_task;
 mod control_task;
+mod imu_stamp;
 mod imu_task;
 mod rc_task;
 

@@ -340,7 +340,7 @@ impl TrainConfig {
         if p.num_steps_per_env == 0 || p.num_learning_epochs == 0 || p.num_mini_batches == 0 {
             return bad("ppo.num_steps_per_env, num_learning_epochs, num_mini_batches must be positive");
         }
-        if (self.env.num_envs * p.num_steps_per_env) % p.num_mini_batches != 0 {
+        if !(self.env.num_envs * p.num_steps_per_env).is_multiple_of(p.num_mini_batches) {
             return bad("env.num_envs * ppo.num_steps_per_env must be divisible by ppo.num_mini_batches");
         }
         if !(0.0..=1.0).contains(&p.gamma) || !(0.0..=1.0).contains(&p.lam) {

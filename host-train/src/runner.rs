@@ -263,6 +263,7 @@ impl Runner {
     /// Trains until `cfg.runner.max_iterations`, checkpointing every `save_interval`
     /// iterations and at the end. A non-finite loss stops the run; the checkpoints written
     /// before it stay as they were.
+    #[allow(clippy::result_large_err)]
     pub fn learn(&mut self, show_progress: bool) -> Result<PathBuf, RunError> {
         let max = self.ppo.cfg.runner.max_iterations;
         let save_every = self.ppo.cfg.runner.save_interval;
@@ -284,7 +285,7 @@ impl Runner {
             };
             bar.set_position(self.iteration as u64);
             bar.set_message(progress_message(&row));
-            if self.iteration % save_every == 0 || self.iteration == max {
+            if self.iteration.is_multiple_of(save_every) || self.iteration == max {
                 self.save().map_err(|e| wrap(e, &self.last_checkpoint))?;
                 self.write_metrics(true).map_err(|e| wrap(e, &self.last_checkpoint))?;
             } else {

@@ -149,6 +149,7 @@ pub struct Ppo {
 /// (surrogate loss, value loss) as scalar tensors:
 /// `L_clip = mean(max(-A r, -A clip(r, 1-e, 1+e)))`, `r = exp(logp - logp_old)`;
 /// `L_V = mean(max((V - R)^2, (V_old + clip(V - V_old, -e, e) - R)^2))` (or plain MSE).
+#[allow(clippy::too_many_arguments)]
 pub fn ppo_losses(
     log_probs: &Tensor,
     old_log_probs: &Tensor,

@@ -199,7 +199,7 @@ mod tests {
         for leg in [0usize, 2, 4] {
             p[PRIV_CONTACT_FORCES.start + 3 * leg + 2] = 80.0 * CONTACT_FORCE_SCALE;
         }
-        p[PRIV_CONTACT_FORCES.start + 3 * 1 + 2] = 1.0 * CONTACT_FORCE_SCALE; // below threshold
+        p[PRIV_CONTACT_FORCES.start + 3 + 2] = CONTACT_FORCE_SCALE; // leg 1 at 1 N: below threshold
         assert_eq!(contact_mask(&p), TRIPOD_A_MASK);
     }
 }

@@ -23,5 +23,14 @@ fn rapier_agrees_with_mujoco() {
     assert!(diff / norm < 0.10, "standing torques differ by {:.1} %", 100.0 * diff / norm);
     let d_ours = ours.walk_displacement_m[0].hypot(ours.walk_displacement_m[1]);
     let d_theirs = theirs.walk_displacement_m[0].hypot(theirs.walk_displacement_m[1]);
+    eprintln!(
+        "height {:.4} vs {:.4} m; torques differ by {:.1} %; gait {:.3} vs {:.3} m ({:.1} %)",
+        ours.stand_height_m,
+        theirs.stand_height_m,
+        100.0 * diff / norm,
+        d_ours,
+        d_theirs,
+        100.0 * (d_ours - d_theirs).abs() / d_theirs
+    );
     assert!((d_ours - d_theirs).abs() / d_theirs < 0.20, "gait displacement: rapier {d_ours} m vs MuJoCo {d_theirs} m");
 }

@@ -25,6 +25,7 @@ use crate::board::SYSCLK_HZ;
 use crate::can_task::{FdcanBus, HEALTH};
 use crate::imu_task::{self, ImuQueue};
 use crate::rc_task::{self, RcBytes};
+use crate::stack;
 
 /// The generated fixed-point policy.
 pub type Policy = NnPolicy<'static, { hexapod_policy::SCRATCH_WORDS }>;
@@ -197,9 +198,10 @@ fn log_status(controller: &Controller, window: &Window) {
         controller.master.counters
     );
     info!(
-        "IMU {} | RC {} CRSF {}",
+        "IMU {} | RC {} CRSF {} | stack high water {} bytes",
         imu_task::STATS.snapshot(),
         rc_task::STATS.snapshot(),
-        controller.rc_receiver().parser.counters
+        controller.rc_receiver().parser.counters,
+        stack::high_water_bytes()
     );
 }

@@ -15,6 +15,7 @@ mod control_task;
 mod imu_stamp;
 mod imu_task;
 mod rc_task;
+mod stack;
 
 use defmt::info;
 use embassy_executor::Spawner;

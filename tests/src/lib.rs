@@ -9,11 +9,14 @@
 //! - [`trace::Trace`]: what a run records, and the measures the scenarios assert on;
 //! - [`sil::Sil`]: the rig and the scenario steps (boot, stand up, run until a mode).
 //!
-//! The scenarios themselves are the integration tests in `tests/`.
+//! - [`scenario::Scenario`]: data-driven scenarios (`scenarios/*.toml`).
+//!
+//! The scenarios are the integration tests in `tests/` and the files in `scenarios/`.
 #![warn(missing_docs)]
 
 pub mod base_motion;
 pub mod gait_policy;
+pub mod scenario;
 pub mod sil;
 pub mod sim_plant;
 pub mod trace;

@@ -36,6 +36,8 @@ pub struct Sil {
     pub h: Harness<SimPlant>,
     /// The controller's parameters.
     pub config: ControllerConfig,
+    /// When [`Sil::stand_up`] reached `Walking`, s.
+    pub stood_up_at_s: Option<f32>,
 }
 
 impl Sil {
@@ -44,7 +46,11 @@ impl Sil {
     pub fn new(seed: u64) -> Result<Self, PlantError> {
         let config = ControllerConfig::default();
         let h = Harness::new(SimPlant::sitting()?, config, seed);
-        Ok(Self { h, config })
+        Ok(Self {
+            h,
+            config,
+            stood_up_at_s: None,
+        })
     }
 
     /// The supervisor's mode.
@@ -100,6 +106,7 @@ impl Sil {
         self.boot()?;
         self.h.rc.set_arm(true);
         if self.run_until(5.0, &mut ZeroPolicy, |m| m == Mode::Walking) {
+            self.stood_up_at_s = Some(self.time_s());
             Ok(())
         } else {
             Err(self.mode())

@@ -201,9 +201,13 @@ impl Scenario {
         toml::from_str(&text).map_err(|source| ScenarioError::Parse { path: name, source })
     }
 
-    /// Runs the scenario; the rig is returned for further checks.
+    /// Runs the scenario on a new rig; the rig is returned for further checks.
     pub fn run(&self) -> Result<Sil, ScenarioError> {
-        let mut sil = Sil::new(self.seed)?;
+        self.run_on(Sil::new(self.seed)?)
+    }
+
+    /// Runs the scenario on `sil` (built with [`Scenario::seed`], e.g. recording traffic).
+    pub fn run_on(&self, mut sil: Sil) -> Result<Sil, ScenarioError> {
         let mut policies = Policies {
             generated: generated_policy(),
             gait: GaitPolicy::default(),

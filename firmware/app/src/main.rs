@@ -10,10 +10,12 @@
 #![no_main]
 
 mod board;
+mod cache;
 mod can_task;
 mod control_task;
 mod imu_stamp;
 mod imu_task;
+mod mpu_region;
 mod rc_task;
 mod stack;
 
@@ -53,13 +55,10 @@ bind_interrupts!(struct Irqs {
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
     let mut core = cortex_m::Peripherals::take().expect("core peripherals taken once");
-    // Instruction cache on. The data cache stays off: embassy's DMA does no cache
-    // maintenance, and the SPI/UART/CAN buffers share AXI SRAM with everything else.
-    core.SCB.enable_icache();
+    let board = Board::new(embassy_stm32::init(board::clock_config()));
+    cache::enable(&mut core.SCB, &mut core.CPUID, &mut core.MPU);
     core.DCB.enable_trace();
     core.DWT.enable_cycle_counter();
-
-    let board = Board::new(embassy_stm32::init(board::clock_config()));
     info!(
         "hexapod firmware {}: STM32H743ZI at {} MHz, policy from {} ({} MACs per step)",
         env!("CARGO_PKG_VERSION"),

@@ -197,9 +197,6 @@ fn half_a_percent_frame_loss_keeps_walking() {
 }
 
 #[test]
-#[ignore = "fails: hexapod-core's master declares FeedbackLost after FEEDBACK_MISS_LIMIT = 3 \
-            consecutive cycles without both TPDOs; at 5 % loss a cycle misses with p = 0.14 \
-            (SYNC + 2 TPDOs), so one of 18 drives trips about every 0.4 s (1 % loss: every 40 s)"]
 fn five_percent_frame_loss_keeps_walking() {
     walk_with_frame_loss(35, 0.05);
 }

@@ -20,8 +20,9 @@ use crate::timing::POLICY_RATE_HZ;
 
 /// Heartbeat period the drives produce, ms.
 pub const HEARTBEAT_PRODUCER_MS: u16 = 100;
-/// How long a drive waits for the master's heartbeat before its quick stop, ms.
-pub const MASTER_HEARTBEAT_TIMEOUT_MS: u16 = 300;
+/// How long a drive waits for the master's heartbeat before its quick stop, ms: five
+/// master periods, so a few heartbeats lost on a noisy bus (5 % frame loss) do not stop it.
+pub const MASTER_HEARTBEAT_TIMEOUT_MS: u16 = 500;
 /// SYNC (and control) period, microseconds.
 pub const SYNC_PERIOD_US: u32 = 1_000_000 / POLICY_RATE_HZ;
 

@@ -115,6 +115,11 @@ impl Runner {
         Ok(())
     }
 
+    /// The last rollout.
+    pub fn storage(&self) -> &RolloutStorage {
+        &self.storage
+    }
+
     /// Runs one rollout of `num_steps_per_env` steps into the storage.
     pub fn collect(&mut self) -> Result<RolloutStats, TrainError> {
         let n = self.env.num_envs();

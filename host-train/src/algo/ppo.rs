@@ -15,6 +15,7 @@ use candle_core::{DType, Device, Result, Tensor};
 use candle_nn::VarMap;
 use hexapod_core::amp::AMP_STATE_DIM;
 use hexapod_core::nets::{ACTOR_OUT, ESTIMATOR_OUT};
+use hexapod_core::timing::POLICY_DT_S;
 use hexapod_core::obs::{ACTOR_OBS_DIM, HEIGHT_SCAN_DIM, HISTORY_DIM, PRIVILEGED_DIM, PRIV_LIN_VEL};
 use host_sim::vec_env::Observations;
 use rand::SeedableRng;
@@ -267,14 +268,16 @@ impl Ppo {
             .to_vec1::<f32>()
     }
 
-    /// Style rewards `[N]` (weighted) and raw discriminator outputs for policy transitions;
+    /// Style rewards `[N]` (`style_weight * dt * max(0, 1 - 0.25 (d - 1)^2)`) and raw discriminator outputs for policy transitions;
     /// zeros without AMP.
     pub fn style_rewards(&self, amp: &[f32], amp_next: &[f32]) -> Result<(Vec<f32>, Vec<f32>)> {
         let n = amp.len() / AMP_STATE_DIM;
         match &self.disc {
             Some(d) => {
                 let (r, raw) = d.style_reward(amp, amp_next)?;
-                let w = self.cfg.rewards.style_weight;
+                // Scaled by the policy period like the simulator's terms (legged_gym's
+                // convention), so r_s and r_g keep the paper's relative weights (Table I).
+                let w = self.cfg.rewards.style_weight * POLICY_DT_S;
                 Ok((r.into_iter().map(|x| w * x).collect(), raw))
             }
             None => Ok((vec![0.0; n], vec![0.0; n])),

@@ -159,8 +159,9 @@ impl VecEnv for PointMassEnv {
                 *v += 0.3 * (VEL_GAIN * mean_off - *v);
             }
             let lin_err = (r.vel[0] - r.command[0]).powi(2) + (r.vel[1] - r.command[1]).powi(2);
-            let task = (-lin_err / 0.15).exp() + 0.5 * (-(r.vel[2] - r.command[2]).powi(2) / 0.15).exp();
-            let penalty = -0.01 * rate;
+            // Per-step terms are scaled by the policy period, as the simulator's are.
+            let task = POLICY_DT_S * ((-lin_err / 0.15).exp() + 0.5 * (-(r.vel[2] - r.command[2]).powi(2) / 0.15).exp());
+            let penalty = -0.01 * rate * POLICY_DT_S;
             res.rewards[i] = if self.task_reward { task } else { 0.0 } + if self.penalties { penalty } else { 0.0 };
             r.sum_task += task;
             r.sum_penalty += penalty;

@@ -1,10 +1,11 @@
 //! One simulated robot in its own rapier world: the URDF multibody on the ground, the
 //! joint drives (CSP law at the physics rate), state read-out, contacts and collisions.
 //!
-//! Solver contacts are made only by the feet. The trunk, thigh and shank collision shapes of
-//! the URDF are taken out of the rapier world and kept as probes: once per policy step they
-//! are tested against the ground shape for the collision flags (penalties, trunk
-//! termination), so they cost nothing in the physics steps in between.
+//! Solver contacts are made by the feet and the trunk (which rests on the ground when the
+//! drives are off). The thigh and shank collision shapes of the URDF are taken out of the
+//! rapier world and kept as probes: once per policy step they, and the trunk, are tested
+//! against the ground shape for the collision flags (penalties, trunk termination), so they
+//! cost nothing in the physics steps in between.
 
 use crate::urdf_model::UrdfModel;
 use hexapod_core::robot::{
@@ -191,9 +192,17 @@ impl RobotWorld {
             feet[leg] = foot.ok_or_else(|| structure(format!("leg {leg}: shank has no foot sphere")))?;
             shanks[leg] = shank.ok_or_else(|| structure(format!("leg {leg}: shank has no cylinder")))?;
         }
-        // Only feet enter the contact solver; the other shapes become probes.
+        // Feet and trunk are solid; thigh and shank shapes become probes. The trunk costs the
+        // solver nothing while it is clear of the ground, and it lets an unpowered robot rest
+        // on its belly.
         let mut probes = Vec::with_capacity(1 + 2 * NUM_LEGS);
-        for handle in std::iter::once(trunk).chain(thighs).chain(shanks) {
+        let trunk_collider = &world.colliders[trunk];
+        probes.push(Probe {
+            body: base,
+            local_pose: trunk_collider.position_wrt_parent().copied().unwrap_or(Pose::IDENTITY),
+            shape: trunk_collider.shared_shape().clone(),
+        });
+        for handle in thighs.into_iter().chain(shanks) {
             let collider = world
                 .colliders
                 .remove(handle, &mut world.islands, &mut world.bodies, &mut world.soft_bodies, false)
@@ -204,6 +213,7 @@ impl RobotWorld {
                 shape: collider.shared_shape().clone(),
             });
         }
+        world.colliders[trunk].set_friction(0.8);
         for handle in feet {
             let c = &mut world.colliders[handle];
             c.set_friction(1.0);
@@ -557,6 +567,19 @@ mod tests {
         let q = r.state().q_rad[0];
         let limit = hexapod_core::robot::Q_MAX_RAD[0];
         assert!(q > limit && q < limit + 0.1, "hip at {q} rad, limit {limit}");
+    }
+
+    #[test]
+    fn unpowered_robot_rests_on_its_trunk() {
+        let mut r = flat_robot();
+        r.drives.motor_strength = [0.0; NUM_JOINTS];
+        for _ in 0..600 {
+            r.step(&Q0_RAD);
+        }
+        let z = r.state().base_pos_world_m[2];
+        let half_height = hexapod_core::robot::TRUNK_SIZE_M[2] / 2.0;
+        assert!((z - half_height).abs() < 0.01, "base at {z} m");
+        assert!(r.contacts().trunk);
     }
 
     #[test]

@@ -183,6 +183,16 @@ impl HexapodEnv {
         self.slots[i].robot.torque_nm
     }
 
+    /// Drive parameters of robot `i` (randomized per episode).
+    pub fn drive_params(&self, i: usize) -> DriveParams {
+        self.slots[i].robot.drives.clone()
+    }
+
+    /// Total mass of robot `i` including its payload, kg (randomized per episode).
+    pub fn total_mass_kg(&self, i: usize) -> f32 {
+        self.slots[i].robot.total_mass_kg()
+    }
+
     /// Pushes robot `i`: adds `dv_world_m_s` to its base velocity.
     pub fn push(&mut self, i: usize, dv_world_m_s: [f32; 3]) {
         let slot = &mut self.slots[i];

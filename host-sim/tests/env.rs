@@ -80,6 +80,30 @@ fn randomized_friction_stays_in_range() {
 }
 
 #[test]
+fn randomized_drives_and_masses_stay_in_range() {
+    let n = 24;
+    let mut env = HexapodEnv::new(EnvConfig { num_envs: n, ..Default::default() }).unwrap();
+    env.reset();
+    env.step(&vec![0.0; n * NUM_JOINTS]);
+    let nominal_kg = hexapod_core::robot::TOTAL_MASS_KG;
+    let (mut lo_kg, mut hi_kg) = (f32::MAX, f32::MIN);
+    for i in 0..n {
+        let d = env.drive_params(i);
+        for j in 0..NUM_JOINTS {
+            let stiffness = d.kp1_per_s[j] * d.kp2_nms_per_rad[j];
+            assert!((80.0..=120.0).contains(&stiffness), "stiffness {stiffness}");
+            assert!((1.6..=2.4).contains(&d.kp2_nms_per_rad[j]), "damping {}", d.kp2_nms_per_rad[j]);
+            assert!((0.8..=1.2).contains(&d.motor_strength[j]));
+        }
+        let m = env.total_mass_kg(i);
+        assert!(m >= 0.9 * nominal_kg - 1e-3 && m <= 1.1 * nominal_kg + 5.0 + 1e-3, "mass {m}");
+        lo_kg = lo_kg.min(m);
+        hi_kg = hi_kg.max(m);
+    }
+    assert!(hi_kg - lo_kg > 1.0, "masses are not randomized: {lo_kg}..{hi_kg}");
+}
+
+#[test]
 fn nan_action_resets_only_that_robot() {
     let mut env = HexapodEnv::new(quiet_config(2)).unwrap();
     env.reset();

@@ -129,14 +129,38 @@ fn bump(counter: &AtomicU32, by: u32) {
     counter.fetch_add(by, Relaxed);
 }
 
-/// The first and last node id on `bus` (the drives of one side have consecutive ids).
-fn node_range(bus: usize) -> (u8, u8) {
-    let mut range = (u8::MAX, 0);
-    for joint in (0..NUM_JOINTS).filter(|&j| can_bus(j) == bus) {
-        let id = can_node_id(joint);
-        range = (range.0.min(id), range.1.max(id));
+/// The first and last node id on `bus`, and how many drives it carries.
+const fn node_span(bus: usize) -> (u8, u8, usize) {
+    let (mut first, mut last, mut count) = (u8::MAX, 0, 0);
+    let mut joint = 0;
+    while joint < NUM_JOINTS {
+        if can_bus(joint) == bus {
+            let id = can_node_id(joint);
+            if id < first {
+                first = id;
+            }
+            if id > last {
+                last = id;
+            }
+            count += 1;
+        }
+        joint += 1;
     }
-    range
+    (first, last, count)
+}
+
+/// True when the drives on `bus` have consecutive node ids, so one id range per function
+/// code accepts exactly them.
+const fn consecutive_ids(bus: usize) -> bool {
+    let (first, last, count) = node_span(bus);
+    count > 0 && (last - first) as usize + 1 == count
+}
+const _: () = assert!(consecutive_ids(0) && consecutive_ids(1));
+
+/// The first and last node id on `bus`.
+const fn node_range(bus: usize) -> (u8, u8) {
+    let (first, last, _) = node_span(bus);
+    (first, last)
 }
 
 /// Accepts `base + first ..= base + last` into `action`'s FIFO.

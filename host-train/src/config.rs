@@ -70,11 +70,16 @@ pub struct RewardConfig {
     pub penalties: bool,
     /// Scale of the style reward (paper: 1).
     pub style_weight: f32,
+    /// Clip the environment's reward (task + penalties) at zero before the style reward is
+    /// added (legged_gym's `only_positive_rewards`): with penalties larger than the task
+    /// reward early in training, a negative per-step reward pays the policy to end episodes
+    /// early by falling.
+    pub only_positive_env_reward: bool,
 }
 
 impl Default for RewardConfig {
     fn default() -> Self {
-        Self { task: true, style: true, penalties: true, style_weight: 1.0 }
+        Self { task: true, style: true, penalties: true, style_weight: 1.0, only_positive_env_reward: true }
     }
 }
 

@@ -137,6 +137,10 @@ impl Runner {
             let (style, d_raw) = self.ppo.style_rewards(&obs.amp, &res.amp_next)?;
             self.ppo.record_policy_transitions(&obs.amp, &res.amp_next, &res.invalid_actions);
             let mut rewards = res.rewards.clone();
+            if self.ppo.cfg.rewards.only_positive_env_reward {
+                // `f32::max` would turn a NaN into 0 and hide a broken environment.
+                rewards.iter_mut().filter(|r| **r < 0.0).for_each(|r| *r = 0.0);
+            }
             for i in 0..n {
                 st.reward_env += res.rewards[i] as f64;
                 st.reward_style += style[i] as f64;

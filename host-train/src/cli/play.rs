@@ -27,7 +27,7 @@ pub struct PlayArgs {
     #[arg(long, default_value_t = 500)]
     pub steps: usize,
     /// Fixed command `vx,vy,wz` (m/s, m/s, rad/s) instead of the environment's.
-    #[arg(long, value_delimiter = ',', num_args = 3, allow_hyphen_values = true)]
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub command: Option<Vec<f32>>,
     /// Output directory (default `<checkpoint>/play`).
     #[arg(long)]
@@ -60,7 +60,11 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let mut env = make_env(&cfg)?;
     let mut obs = env.reset();
-    let command = args.command.as_ref().map(|c| [c[0], c[1], c[2]]);
+    let command = match args.command.as_deref() {
+        None => None,
+        Some([vx, vy, wz]) => Some([*vx, *vy, *wz]),
+        Some(other) => anyhow::bail!("--command takes vx,vy,wz (3 values), got {}", other.len()),
+    };
     let mut csv = String::from("t_s,cmd_vx,cmd_vy,cmd_wz,vx_m_s,vy_m_s,wz_rad_s,est_vx_m_s,est_vy_m_s,base_height_m,done");
     for name in JOINT_NAMES {
         write!(csv, ",q_{name}").ok();

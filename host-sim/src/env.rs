@@ -3,7 +3,7 @@
 //! domain randomization, pushes, command sampling and the terrain curriculum.
 
 use crate::config::{ConfigError, EnvConfig};
-use crate::frames::{quat_from_yaw, rotate, rotate_inverse, yaw_rad};
+use crate::frames::{quat_from_yaw, rotate_inverse, yaw_rad};
 use crate::rewards::{self, RewardInputs, TERM_NAMES};
 use crate::robot::{BuildError, ContactState, DriveParams, RobotState, RobotWorld};
 use crate::terrain::Terrain;
@@ -446,7 +446,7 @@ impl Slot {
         let invalid = action.iter().any(|a| !a.is_finite());
         if invalid {
             let amp_next = self.amp;
-            let episode = Some(self.episode_log(config));
+            let episode = Some(self.episode_log());
             self.reset(config);
             return SlotStep { reward: 0.0, done: true, time_out: false, invalid, amp_next, episode };
         }
@@ -505,7 +505,7 @@ impl Slot {
         self.prev_action = self.action;
 
         if done {
-            let episode = Some(self.episode_log(config));
+            let episode = Some(self.episode_log());
             self.update_curriculum(config);
             self.reset(config);
             return SlotStep { reward: terms.total(), done, time_out: time_out && !terminated, invalid, amp_next, episode };
@@ -528,8 +528,7 @@ impl Slot {
         SlotStep { reward: terms.total(), done, time_out: false, invalid, amp_next, episode: None }
     }
 
-    fn episode_log(&self, config: &EnvConfig) -> Vec<(String, f32)> {
-        let _ = config;
+    fn episode_log(&self) -> Vec<(String, f32)> {
         let length_s = (self.step.max(1)) as f32 * POLICY_DT_S;
         let mut log: Vec<(String, f32)> = TERM_NAMES
             .iter()
@@ -539,9 +538,4 @@ impl Slot {
         log.push(("episode_length_s".into(), length_s));
         log
     }
-}
-
-/// World-frame velocity of a base-frame vector (re-exported helper for tools).
-pub fn base_to_world(q_xyzw: [f32; 4], v_base: [f32; 3]) -> [f32; 3] {
-    rotate(q_xyzw, v_base)
 }

@@ -457,12 +457,21 @@ impl Slot {
         for j in 0..NUM_JOINTS {
             q_target[j] = Q0_RAD[j] + ACTION_SCALE_RAD * self.action[j];
         }
+        // Foot forces are averaged over the policy step: single 5 ms samples carry impact
+        // spikes that would dominate the contact-force penalty and the privileged state.
+        let mut force_sum = [[0.0f32; 3]; NUM_LEGS];
         for _ in 0..DECIMATION {
             self.robot.step(&q_target);
+            for (sum, f) in force_sum.iter_mut().zip(self.robot.foot_forces_world_n()) {
+                for k in 0..3 {
+                    sum[k] += f[k] / DECIMATION as f32;
+                }
+            }
         }
         self.step += 1;
         self.state = self.robot.state();
         self.contacts = self.robot.contacts();
+        self.contacts.foot_force_world_n = force_sum;
         let s = self.state;
         let lin_vel = rotate_inverse(s.base_quat_xyzw, s.base_lin_vel_world_m_s);
         let ang_vel = rotate_inverse(s.base_quat_xyzw, s.base_ang_vel_world_rad_s);

@@ -389,27 +389,28 @@ impl RobotWorld {
         }
     }
 
+    /// Ground reaction force on each foot in the last physics step, world, N (normal part).
+    pub fn foot_forces_world_n(&self) -> [[f32; 3]; NUM_LEGS] {
+        let np = &self.world.narrow_phase;
+        let mut forces = [[0.0; 3]; NUM_LEGS];
+        for leg in 0..NUM_LEGS {
+            let Some(pair) = np.contact_pair(self.feet[leg], self.ground) else { continue };
+            if !pair.has_any_active_contact() {
+                continue;
+            }
+            let mut f = pair.total_impulse() / PHYSICS_DT_S;
+            // The ground pushes the foot up, whichever collider the pair lists first.
+            if f.z < 0.0 {
+                f = -f;
+            }
+            forces[leg] = [f.x, f.y, f.z];
+        }
+        forces
+    }
+
     /// Foot forces and collision flags of the last step.
     pub fn contacts(&self) -> ContactState {
-        let np = &self.world.narrow_phase;
-        let mut c = ContactState::default();
-        let inv_dt = 1.0 / PHYSICS_DT_S;
-        for leg in 0..NUM_LEGS {
-            if let Some(pair) = np.contact_pair(self.feet[leg], self.ground) {
-                if pair.has_any_active_contact() {
-                    let mut f = pair.total_impulse() * inv_dt;
-                    // total_impulse acts on collider1; we want the force on the foot.
-                    if pair.collider1 == self.ground {
-                        f = -f;
-                    }
-                    // The ground pushes the foot up.
-                    if f.z < 0.0 {
-                        f = -f;
-                    }
-                    c.foot_force_world_n[leg] = [f.x, f.y, f.z];
-                }
-            }
-        }
+        let mut c = ContactState { foot_force_world_n: self.foot_forces_world_n(), ..Default::default() };
         let ground = &self.world.colliders[self.ground];
         let touches = |probe: &Probe| {
             let pose = *self.world.bodies[probe.body].position() * probe.local_pose;

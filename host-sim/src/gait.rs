@@ -12,13 +12,15 @@ pub struct TripodGait {
     pub period_s: f32,
     /// Base velocity to walk at (x forward, y left), m/s.
     pub velocity_m_s: [f32; 2],
+    /// Yaw rate to turn at (counter-clockwise seen from above), rad/s.
+    pub yaw_rate_rad_s: f32,
     /// Foot lift at mid-swing, m.
     pub step_height_m: f32,
 }
 
 impl Default for TripodGait {
     fn default() -> Self {
-        Self { period_s: 0.6, velocity_m_s: [0.2, 0.0], step_height_m: 0.06 }
+        Self { period_s: 0.6, velocity_m_s: [0.2, 0.0], yaw_rate_rad_s: 0.0, step_height_m: 0.06 }
     }
 }
 
@@ -28,8 +30,8 @@ impl TripodGait {
         let nominal = foot_positions_base(&Q0_RAD);
         let phase = (t_s / self.period_s).rem_euclid(1.0);
         let half_period_s = self.period_s / 2.0;
-        // Stride: the distance the base travels while a foot is on the ground.
-        let stride = [self.velocity_m_s[0] * half_period_s, self.velocity_m_s[1] * half_period_s];
+        let [vx, vy] = self.velocity_m_s;
+        let wz = self.yaw_rate_rad_s;
         let mut q = Q0_RAD;
         for leg in Leg::ALL {
             let in_a = TRIPOD_A_MASK & (1 << leg.index()) != 0;
@@ -44,6 +46,9 @@ impl TripodGait {
                 (0.5 - u, 0.0)
             };
             let n = nominal[leg.index()];
+            // Stride: how far the ground under this foot moves in the base frame while the
+            // foot stands on it, (v + w x p) over half a period.
+            let stride = [(vx - wz * n[1]) * half_period_s, (vy + wz * n[0]) * half_period_s];
             let foot = [
                 n[0] + s * stride[0],
                 n[1] + s * stride[1],
@@ -92,6 +97,26 @@ mod tests {
                 assert!((q[j] - prev[j]).abs() < 0.05, "jump at step {k}, joint {j}");
             }
             prev = q;
+        }
+    }
+
+    #[test]
+    fn turning_in_place_sweeps_stance_feet_around_the_base() {
+        // At t = 0.3 s tripod A is at the start of its stance and at t = 0.6 s at its end;
+        // turning left at w, a stance foot at p must move by -(w x p) * T/2 in the base frame.
+        let g = TripodGait { velocity_m_s: [0.0, 0.0], yaw_rate_rad_s: 0.4, ..Default::default() };
+        let (start, end) = (foot_positions_base(&g.joint_targets(0.3)), foot_positions_base(&g.joint_targets(0.6 - 1e-4)));
+        let nominal = foot_positions_base(&Q0_RAD);
+        for leg in 0..NUM_LEGS {
+            if TRIPOD_A_MASK & (1 << leg) == 0 {
+                continue;
+            }
+            let p = nominal[leg];
+            let want = [0.4 * p[1] * 0.3, -0.4 * p[0] * 0.3];
+            for k in 0..2 {
+                let moved = end[leg][k] - start[leg][k];
+                assert!((moved - want[k]).abs() < 2e-3, "leg {leg} axis {k}: {moved} vs {}", want[k]);
+            }
         }
     }
 }

@@ -221,6 +221,18 @@ pub struct AmpConfig {
     pub grad_penalty_weight: f32,
     /// Weight of the discriminator loss in the joint update.
     pub loss_coef: f32,
+    /// L2 weight decay on the discriminator's hidden-layer weights.
+    pub weight_decay: f64,
+    /// L2 weight decay on the output (logit) layer's weights, which keeps the discriminator
+    /// from saturating at d = -1 where the style reward has no slope (AMP's logit
+    /// regularization).
+    pub logit_weight_decay: f64,
+    /// Standard deviation of Gaussian instance noise added to the discriminator's normalized
+    /// inputs (prior and policy) while it trains, never when it scores the policy. The
+    /// priors are a few exact periodic loops; without noise the discriminator fences them
+    /// in so tightly that every policy transition scores d = -1 and the style reward is
+    /// flat zero.
+    pub input_noise_std: f32,
     /// Policy transitions kept in the replay buffer.
     pub replay_buffer_size: usize,
     /// Prior source.
@@ -236,6 +248,9 @@ impl Default for AmpConfig {
             learning_rate: 1e-4,
             grad_penalty_weight: 10.0,
             loss_coef: 1.0,
+            weight_decay: 1e-4,
+            logit_weight_decay: 1e-2,
+            input_noise_std: 0.0,
             replay_buffer_size: 100_000,
             prior_kind: PriorKind::Dataset,
             priors_dir: "assets/priors".into(),

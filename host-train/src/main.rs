@@ -16,6 +16,8 @@ struct Cli {
 enum Command {
     /// Train a policy (PPO + AMP) from a TOML preset.
     Train(cli::train::TrainArgs),
+    /// Warm-start a policy by cloning the scripted tripod gait (a checkpoint to resume).
+    Pretrain(cli::pretrain::PretrainArgs),
     /// Generate the motion-prior dataset by trajectory optimization, check or replay it.
     Priors(cli::priors::PriorsArgs),
     /// Run a checkpoint and write its trajectory, plots and a 3D replay.
@@ -30,6 +32,7 @@ fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Train(args) => cli::train::run(args),
+        Command::Pretrain(args) => cli::pretrain::run(args),
         Command::Priors(args) => cli::priors::run(args),
         Command::Play(args) => cli::play::run(args),
         Command::Eval(args) => cli::eval::run(args),

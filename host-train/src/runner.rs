@@ -348,6 +348,7 @@ fn metrics_row(it: usize, ro: &RolloutStats, up: &UpdateStats, collect_s: f64, u
     put("loss/discriminator", up.disc_loss as f64);
     put("loss/grad_penalty", up.grad_penalty as f64);
     put("train/kl", up.kl as f64);
+    put("train/kl_first", up.kl_first as f64);
     put("train/learning_rate", up.learning_rate);
     put("train/grad_norm", up.grad_norm as f64);
     put("train/action_std", up.action_std as f64);

@@ -104,6 +104,8 @@ pub struct UpdateStats {
     pub estimator: f32,
     /// Mean KL between the rollout policy and the updated policy.
     pub kl: f32,
+    /// KL on the first minibatch, before any step: the rollout/update mismatch (should be ~0).
+    pub kl_first: f32,
     /// Learning rate after the update.
     pub learning_rate: f64,
     /// Gradient norm before clipping.
@@ -177,6 +179,34 @@ pub fn ppo_losses(
     Ok((surrogate, value_loss))
 }
 
+/// The discriminator's L2 weight decay for variable `name`: `logit_weight_decay` on the
+/// output layer's weight, `weight_decay` on hidden weights, none on biases.
+fn disc_weight_decay(amp: &crate::config::AmpConfig, name: &str) -> f64 {
+    let output = format!("discriminator.layers.{}.weight", amp.discriminator_hidden.len());
+    if name == output {
+        amp.logit_weight_decay
+    } else if name.ends_with(".weight") {
+        amp.weight_decay
+    } else {
+        0.0
+    }
+}
+
+/// `x + N(0, sigma^2)` element-wise from the learner's seeded generator (`x` when sigma is 0).
+fn with_noise(x: Tensor, sigma: f32, rng: &mut ChaCha8Rng) -> Result<Tensor> {
+    if sigma <= 0.0 {
+        return Ok(x);
+    }
+    let noise: Vec<f32> = (0..x.elem_count())
+        .map(|_| {
+            let z: f32 = StandardNormal.sample(rng);
+            sigma * z
+        })
+        .collect();
+    let noise = Tensor::from_vec(noise, x.shape(), x.device())?.to_dtype(x.dtype())?;
+    x + noise
+}
+
 /// Mean KL(old || new) of diagonal Gaussians, rsl_rl's formula.
 pub fn gaussian_kl(old_mean: &Tensor, old_log_std: &Tensor, mean: &Tensor, log_std: &Tensor) -> Result<f32> {
     let var_ratio = old_log_std.sub(log_std)?.affine(2.0, 0.0)?.exp()?; // sigma_old^2 / sigma^2
@@ -199,7 +229,8 @@ impl Ppo {
         let ac = ActorCritic::new(&cfg.policy, &params, &stats, DType::F32, &device)?;
         let (disc, disc_opt, replay) = if cfg.amp_enabled() {
             let d = Discriminator::new(&cfg.amp.discriminator_hidden, &disc_params, &stats, DType::F32, &device)?;
-            let opt = Adam::new(&disc_params, cfg.amp.learning_rate)?;
+            let opt = Adam::new(&disc_params, cfg.amp.learning_rate)?
+                .with_weight_decay(|name| disc_weight_decay(&cfg.amp, name));
             (Some(d), Some(opt), Some(ReplayBuffer::new(cfg.amp.replay_buffer_size)))
         } else {
             (None, None, None)
@@ -308,6 +339,9 @@ impl Ppo {
                     _ => None,
                 };
                 let step = self.minibatch_step(&mb, &old_log_std, amp.as_ref(), iteration)?;
+                if count == 0 {
+                    st.kl_first = step.kl;
+                }
                 st.surrogate += step.surrogate;
                 st.value += step.value;
                 st.entropy += step.entropy;
@@ -388,8 +422,9 @@ impl Ppo {
             loss = (loss + (est_loss * p.estimator_loss_coef as f64)?)?;
         }
         if let (Some(disc), Some(a)) = (&self.disc, amp) {
-            let policy_in = disc.input(&a.policy_s, &a.policy_sn)?;
-            let prior_in = disc.input(&a.prior_s, &a.prior_sn)?;
+            let sigma = self.cfg.amp.input_noise_std;
+            let policy_in = with_noise(disc.input(&a.policy_s, &a.policy_sn)?, sigma, &mut self.rng)?;
+            let prior_in = with_noise(disc.input(&a.prior_s, &a.prior_sn)?, sigma, &mut self.rng)?;
             let dl = disc.loss(&prior_in, &policy_in, self.cfg.amp.grad_penalty_weight as f64)?;
             (st.disc_loss, st.grad_penalty, st.d_prior, st.d_policy) = (dl.ls_loss, dl.grad_penalty, dl.d_prior, dl.d_policy);
             loss = (loss + (dl.total * self.cfg.amp.loss_coef as f64)?)?;

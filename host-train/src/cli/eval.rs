@@ -1,6 +1,7 @@
-//! `hexapod eval`: tracking error at fixed commands, fall rate (under the environment's
-//! random pushes), and a tripod score (fraction of time the stance set is exactly one of
-//! the two tripods), for a checkpoint.
+//! `hexapod eval`: tracking at fixed commands (error, mean velocity, speed error), fall
+//! rate under the environment's random pushes, a tripod score (fraction of time the stance
+//! set is exactly one of the two tripods), and a push test (0.5 m/s shoves every 4 s for a
+//! 20 s episode), for a checkpoint.
 
 use crate::checkpoint::load_for_inference;
 use crate::cli::play::set_command;
@@ -57,6 +58,32 @@ pub struct CommandResult {
     pub fall_rate: f64,
     /// Fraction of steps whose stance set is exactly tripod A or B.
     pub tripod_score: f64,
+    /// Error of the mean speed along the command, percent of the commanded speed (the yaw
+    /// rate for a pure turn): how well the average gait tracks, without the within-stride
+    /// oscillation that `lin_vel_error_m_s` includes.
+    pub speed_error_pct: f64,
+}
+
+/// The push test: robots walk at a fixed command for a full episode and are shoved at a
+/// fixed speed in random horizontal directions at a fixed interval.
+#[derive(Debug, Serialize)]
+pub struct PushTestResult {
+    /// Command (vx, vy, wz).
+    pub command: [f32; 3],
+    /// Speed change of every push, m/s.
+    pub push_m_s: f32,
+    /// Time between pushes, s (the first one after half an interval).
+    pub interval_s: f32,
+    /// Test length, s.
+    pub duration_s: f32,
+    /// Pushes each robot received.
+    pub pushes_per_robot: usize,
+    /// Robots tested.
+    pub robots: usize,
+    /// Fraction of robots that fell (terminated) at least once.
+    pub fall_rate: f64,
+    /// Mean forward speed over the test, m/s.
+    pub mean_vx_m_s: f64,
 }
 
 /// The evaluation report.
@@ -80,6 +107,76 @@ pub struct EvalReport {
     pub mean_tripod_score: f64,
     /// RMS estimator error, m/s (NaN without estimator).
     pub estimator_error_m_s: f64,
+    /// The push test (simulator only).
+    pub push_test: Option<PushTestResult>,
+}
+
+/// Speed change of the push test's pushes, m/s.
+pub const PUSH_TEST_M_S: f32 = 0.5;
+/// Time between the push test's pushes, s.
+pub const PUSH_TEST_INTERVAL_S: f32 = 4.0;
+/// Length of the push test (one full training episode), s.
+pub const PUSH_TEST_DURATION_S: f32 = 20.0;
+/// Command of the push test.
+pub const PUSH_TEST_COMMAND: [f32; 3] = [0.3, 0.0, 0.0];
+
+/// Percent error of the mean velocity along the command (yaw rate for a pure turn).
+pub fn speed_error_pct(command: [f32; 3], mean_velocity: [f64; 3]) -> f64 {
+    let c = [command[0] as f64, command[1] as f64, command[2] as f64];
+    let speed = (c[0] * c[0] + c[1] * c[1]).sqrt();
+    if speed > 1e-6 {
+        let along = (mean_velocity[0] * c[0] + mean_velocity[1] * c[1]) / speed;
+        100.0 * (along - speed).abs() / speed
+    } else if c[2].abs() > 1e-6 {
+        100.0 * (mean_velocity[2] - c[2]).abs() / c[2].abs()
+    } else {
+        f64::NAN
+    }
+}
+
+/// Runs the push test on the simulator with the environment's own random pushes off.
+fn push_test(cfg: &crate::config::TrainConfig, ppo: &mut crate::algo::ppo::Ppo, n: usize) -> anyhow::Result<PushTestResult> {
+    use host_sim::vec_env::VecEnv;
+    use rand::{Rng, SeedableRng};
+    let mut sim = cfg.resolved_sim();
+    sim.num_envs = n;
+    sim.push.enabled = false;
+    sim.episode_length_s = PUSH_TEST_DURATION_S + 1.0;
+    let mut env = host_sim::env::HexapodEnv::new(sim)?;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(cfg.env.seed ^ 0x9e37);
+    let dt = hexapod_core::timing::POLICY_DT_S;
+    let steps = (PUSH_TEST_DURATION_S / dt).round() as usize;
+    let every = (PUSH_TEST_INTERVAL_S / dt).round() as usize;
+    let mut obs = env.reset();
+    let (mut fell, mut pushes, mut vx, mut samples) = (vec![false; n], 0usize, 0.0f64, 0usize);
+    for step in 0..steps {
+        if step >= every / 2 && (step - every / 2) % every == 0 {
+            for i in 0..n {
+                let angle: f32 = rng.gen_range(0.0..std::f32::consts::TAU);
+                env.push(i, [PUSH_TEST_M_S * angle.cos(), PUSH_TEST_M_S * angle.sin(), 0.0]);
+            }
+            pushes += 1;
+        }
+        set_command(&mut obs.actor, PUSH_TEST_COMMAND);
+        let act = ppo.act(&obs, true)?;
+        let res = env.step(&act.actions);
+        for i in 0..n {
+            vx += (obs.privileged[i * PRIVILEGED_DIM + PRIV_LIN_VEL.start] / LIN_VEL_SCALE) as f64;
+            samples += 1;
+            fell[i] |= res.dones[i] && !res.time_outs[i];
+        }
+        obs = res.obs;
+    }
+    Ok(PushTestResult {
+        command: PUSH_TEST_COMMAND,
+        push_m_s: PUSH_TEST_M_S,
+        interval_s: PUSH_TEST_INTERVAL_S,
+        duration_s: PUSH_TEST_DURATION_S,
+        pushes_per_robot: pushes,
+        robots: n,
+        fall_rate: fell.iter().filter(|&&f| f).count() as f64 / n as f64,
+        mean_vx_m_s: vx / samples.max(1) as f64,
+    })
 }
 
 /// Stance mask (bit i = leg i) from a privileged state row.
@@ -147,17 +244,21 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             obs = res.obs;
         }
         let s = samples.max(1) as f64;
+        let mean_velocity = [mean_v[0] / s, mean_v[1] / s, mean_v[2] / s];
         results.push(CommandResult {
             command,
             lin_vel_error_m_s: lin_err / s,
             yaw_rate_error_rad_s: yaw_err / s,
-            mean_velocity: [mean_v[0] / s, mean_v[1] / s, mean_v[2] / s],
+            mean_velocity,
+            speed_error_pct: speed_error_pct(command, mean_velocity),
             fall_rate: fell.iter().filter(|&&f| f).count() as f64 / n as f64,
             tripod_score: tripod as f64 / contact_samples.max(1) as f64,
         });
     }
     let m = results.len() as f64;
+    let push = if cfg.env.kind == EnvKind::Sim { Some(push_test(&cfg, &mut ppo, n)?) } else { None };
     let report = EvalReport {
+        push_test: push,
         checkpoint: args.checkpoint.display().to_string(),
         env: format!("{:?}", cfg.env.kind).to_lowercase(),
         num_envs: n,
@@ -168,15 +269,26 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         estimator_error_m_s: if est_n > 0 { (est_sq / est_n as f64).sqrt() } else { f64::NAN },
         commands: results,
     };
-    println!("{:>22} {:>12} {:>12} {:>10} {:>10}", "command (vx,vy,wz)", "lin err m/s", "yaw err r/s", "fall rate", "tripod");
+    println!(
+        "{:>22} {:>12} {:>12} {:>24} {:>10} {:>10} {:>10}",
+        "command (vx,vy,wz)", "lin err m/s", "yaw err r/s", "mean (vx,vy,wz)", "speed err", "fall rate", "tripod"
+    );
     for r in &report.commands {
         println!(
-            "{:>22} {:>12.3} {:>12.3} {:>10.2} {:>10.2}",
+            "{:>22} {:>12.3} {:>12.3} {:>24} {:>9.0}% {:>10.2} {:>10.2}",
             format!("({:.1},{:.1},{:.1})", r.command[0], r.command[1], r.command[2]),
             r.lin_vel_error_m_s,
             r.yaw_rate_error_rad_s,
+            format!("({:+.2},{:+.2},{:+.2})", r.mean_velocity[0], r.mean_velocity[1], r.mean_velocity[2]),
+            r.speed_error_pct,
             r.fall_rate,
             r.tripod_score
+        );
+    }
+    if let Some(p) = &report.push_test {
+        println!(
+            "push test: {} robots at ({:.1},{:.1},{:.1}) for {:.0} s, {} pushes of {:.1} m/s each: fall rate {:.2}, mean vx {:.3} m/s",
+            p.robots, p.command[0], p.command[1], p.command[2], p.duration_s, p.pushes_per_robot, p.push_m_s, p.fall_rate, p.mean_vx_m_s
         );
     }
     println!(
@@ -192,6 +304,14 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn speed_error_is_along_the_command() {
+        assert!((speed_error_pct([0.3, 0.0, 0.0], [0.24, 0.1, 0.0]) - 20.0).abs() < 1e-4);
+        assert!((speed_error_pct([0.0, -0.2, 0.0], [0.0, -0.3, 0.0]) - 50.0).abs() < 1e-4);
+        assert!((speed_error_pct([0.0, 0.0, 0.5], [0.0, 0.0, 0.4]) - 20.0).abs() < 1e-4);
+        assert!(speed_error_pct([0.0; 3], [0.1; 3]).is_nan());
+    }
 
     #[test]
     fn contact_mask_reads_the_force_norm() {

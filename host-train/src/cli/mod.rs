@@ -2,6 +2,7 @@
 
 pub mod eval;
 pub mod play;
+pub mod pretrain;
 pub mod priors;
 pub mod replay;
 pub mod train;

@@ -17,6 +17,9 @@ pub mod records;
 pub mod sim;
 pub mod size;
 
+/// The checkpoint `firmware/policy` is generated from: the shipped flat-ground tripod policy.
+pub const SHIPPED_CHECKPOINT: &str = "assets/policies/flat-tripod";
+
 /// Observations used for calibration (synthetic, seed 1).
 pub const CALIBRATION_COUNT: usize = 2000;
 /// Seed of the calibration set.

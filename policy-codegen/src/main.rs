@@ -33,7 +33,7 @@ enum Cmd {
     /// Generates the hexapod-policy crate from a checkpoint directory (or an ONNX MLP).
     Generate {
         /// Checkpoint directory.
-        #[arg(long, default_value = "assets/policies/random-init")]
+        #[arg(long, default_value = policy_codegen::SHIPPED_CHECKPOINT)]
         checkpoint: PathBuf,
         /// ONNX file of a plain MLP actor (replaces --checkpoint).
         #[arg(long)]
@@ -48,7 +48,7 @@ enum Cmd {
     /// Max |a_fixed - a_f32| over observations (synthetic, or a recording).
     Accuracy {
         /// Checkpoint directory.
-        #[arg(long, default_value = "assets/policies/random-init")]
+        #[arg(long, default_value = policy_codegen::SHIPPED_CHECKPOINT)]
         checkpoint: PathBuf,
         /// Recorded observations (f32 rows of actor obs 63 + history 210).
         #[arg(long)]
@@ -66,7 +66,7 @@ enum Cmd {
         /// Captured stdout of `firmware/qemu-bench` (`cargo run --release`).
         output: PathBuf,
         /// Checkpoint the crate was generated from.
-        #[arg(long, default_value = "assets/policies/random-init")]
+        #[arg(long, default_value = policy_codegen::SHIPPED_CHECKPOINT)]
         checkpoint: PathBuf,
         /// Fail above this many instructions per MAC (SMLALD kernel).
         #[arg(long, default_value_t = 1.5)]
@@ -76,7 +76,7 @@ enum Cmd {
     /// action difference on the observations the f32 run recorded.
     SimCompare {
         /// Checkpoint directory.
-        #[arg(long, default_value = "assets/policies/random-init")]
+        #[arg(long, default_value = policy_codegen::SHIPPED_CHECKPOINT)]
         checkpoint: PathBuf,
         /// Robots.
         #[arg(long, default_value_t = 16)]

@@ -50,11 +50,11 @@ fn empirical_normalizers(n: usize) -> (Normalizer, Normalizer) {
 
 #[test]
 fn committed_policy_crate_is_fresh() {
-    let dir = repo().join("assets/policies/random-init");
+    let dir = repo().join(policy_codegen::SHIPPED_CHECKPOINT);
     let ck = checkpoint::load(&dir).unwrap();
     let q = quantize_default(&ck.policy).unwrap();
     let prov = emit::Provenance {
-        checkpoint: "assets/policies/random-init".into(),
+        checkpoint: policy_codegen::SHIPPED_CHECKPOINT.into(),
         sha256: ck.sha256.clone(),
         macs: ck.policy.macs(),
     };

@@ -19,12 +19,6 @@ pub fn generated_policy() -> Option<GeneratedPolicy> {
     GeneratedPolicy::new(&hexapod_policy::POLICY, Kernel::Native)
 }
 
-/// True when `firmware/policy` was generated from a trained checkpoint (not the randomly
-/// initialized one it starts from).
-pub fn policy_is_trained() -> bool {
-    !hexapod_policy::SOURCE_CHECKPOINT.ends_with("random-init")
-}
-
 /// The physics closure the harness calls every 5 ms.
 pub fn physics(plant: &mut SimPlant, _dt_s: f32) {
     plant.step();

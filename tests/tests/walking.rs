@@ -1,12 +1,12 @@
-//! Walking with the generated fixed-point policy on an RC forward command for 10 s on flat
-//! ground: no fall; and, once `firmware/policy` comes from a trained checkpoint, a mean
-//! forward speed within 25 % of the command.
+//! Walking with the generated fixed-point policy (`firmware/policy`, from the shipped
+//! `assets/policies/flat-tripod`) on an RC forward command for 10 s on flat ground, through
+//! the whole firmware loop: no fall, and a mean forward speed within 25 % of the command.
 
 use hexapod_core::control::Policy;
 use hexapod_core::controller::ZeroPolicy;
 use hexapod_core::supervisor::Mode;
 use sil_tests::gait_policy::GaitPolicy;
-use sil_tests::sil::{generated_policy, policy_is_trained, Sil};
+use sil_tests::sil::{generated_policy, Sil};
 use sil_tests::trace::Trace;
 
 /// Forward stick 0.6 of full travel: 0.3 m/s with the default RC mapping.
@@ -62,13 +62,10 @@ fn walks_10_s_on_a_forward_command_without_falling() {
         "base down to {}",
         trace.min_height_m(t0)
     );
-    if policy_is_trained() {
-        assert_speed(&trace, command, t0);
-    }
+    assert_speed(&trace, command, t0);
 }
 
 #[test]
-#[ignore = "firmware/policy is generated from assets/policies/random-init (untrained): it does not walk yet; the no-fall test checks the speed by itself once the policy is trained"]
 fn walks_at_the_commanded_speed() {
     let mut policy = generated_policy().expect("valid generated policy");
     let (trace, command, t0) = walk_10_s(42, &mut policy);

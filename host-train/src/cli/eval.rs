@@ -58,6 +58,8 @@ pub struct CommandResult {
     pub fall_rate: f64,
     /// Fraction of steps whose stance set is exactly tripod A or B.
     pub tripod_score: f64,
+    /// Fraction of steps with k = 0..=6 feet on the ground.
+    pub feet_down_fraction: [f64; 7],
     /// Error of the mean speed along the command, percent of the commanded speed (the yaw
     /// rate for a pure turn): how well the average gait tracks, without the within-stride
     /// oscillation that `lin_vel_error_m_s` includes.
@@ -208,6 +210,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         let mut fell = vec![false; n];
         let (mut lin_err, mut yaw_err, mut mean_v, mut samples) = (0.0f64, 0.0f64, [0.0f64; 3], 0usize);
         let (mut tripod, mut contact_samples) = (0usize, 0usize);
+        let mut feet_down = [0usize; 7];
         for step in 0..args.steps {
             set_command(&mut obs.actor, command);
             let act = ppo.act(&obs, true)?;
@@ -228,6 +231,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
                     samples += 1;
                     let mask = contact_mask(p);
                     tripod += usize::from(mask == TRIPOD_A_MASK || mask == TRIPOD_B_MASK);
+                    feet_down[mask.count_ones() as usize] += 1;
                     contact_samples += 1;
                 }
                 if !act.estimate.is_empty() {
@@ -253,6 +257,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             speed_error_pct: speed_error_pct(command, mean_velocity),
             fall_rate: fell.iter().filter(|&&f| f).count() as f64 / n as f64,
             tripod_score: tripod as f64 / contact_samples.max(1) as f64,
+            feet_down_fraction: feet_down.map(|k| k as f64 / contact_samples.max(1) as f64),
         });
     }
     let m = results.len() as f64;

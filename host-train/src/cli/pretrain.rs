@@ -8,6 +8,7 @@
 //! more samples than a 2-core machine gives to find stepping at all.
 
 use crate::algo::adam::Adam;
+use crate::algo::storage::gather_rows;
 use crate::algo::ppo::Ppo;
 use crate::checkpoint;
 use crate::config::{EnvKind, TrainConfig};
@@ -163,11 +164,7 @@ fn collect(cfg: &TrainConfig, args: &PretrainArgs) -> anyhow::Result<Dataset> {
 }
 
 fn rows(data: &[f32], dim: usize, idx: &[usize], device: &Device) -> candle_core::Result<Tensor> {
-    let mut out = Vec::with_capacity(idx.len() * dim);
-    for &r in idx {
-        out.extend_from_slice(&data[r * dim..(r + 1) * dim]);
-    }
-    Tensor::from_vec(out, (idx.len(), dim), device)
+    Tensor::from_vec(gather_rows(data, dim, idx), (idx.len(), dim), device)
 }
 
 /// One epoch of regression; returns (action MSE, estimator MSE, value MSE) means.
@@ -194,9 +191,8 @@ fn epoch(ppo: &Ppo, opt: &mut Adam, data: &Dataset, batch: usize, rng: &mut ChaC
             sums[1] += est.to_scalar::<f32>()? as f64;
             loss = (loss + est)?;
         }
-        let vb = (b * batch) % value_order.len().max(1);
-        if value_order.len() >= batch && vb + batch <= value_order.len() {
-            let vidx = &value_order[vb..vb + batch];
+        // The critic takes the b-th batch of its own (shorter) row set, wrapping around.
+        if let Some(vidx) = value_order.chunks_exact(batch).cycle().nth(b) {
             let v = ppo.ac.value(&CriticInput {
                 actor_obs: &rows(&data.actor, ACTOR_OBS_DIM, vidx, &dev)?,
                 history: &rows(&data.history, HISTORY_DIM, vidx, &dev)?,
@@ -228,6 +224,7 @@ pub fn run(args: PretrainArgs) -> anyhow::Result<()> {
     ppo.ac.update_normalizers(&data.actor, &data.history, &data.privileged, &data.heights)?;
     let mut opt = Adam::new(&ppo.params, args.learning_rate)?;
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.runner.seed ^ 0xbc);
+    let label_variance = variance(&data.labels);
     for e in 0..args.epochs {
         let [a, est, v] = epoch(&ppo, &mut opt, &data, args.batch, &mut rng)?;
         eprintln!(
@@ -235,7 +232,7 @@ pub fn run(args: PretrainArgs) -> anyhow::Result<()> {
             e + 1,
             args.epochs,
             a,
-            variance(&data.labels),
+            label_variance,
             est,
             v
         );

@@ -5,8 +5,17 @@
 //! (`POLICY_DT_S`), so sums over an episode do not depend on the control rate. A scale of
 //! zero switches a term off; `task` and `regularization` switch whole groups (the paper's
 //! ablations g+s, g+l, g+s+l).
+//!
+//! One term is not in Table I and is off by default: `tripod_contact` rewards each step
+//! whose stance set is exactly one of the two tripods while the robot is commanded to move
+//! (see `configs/flat-tripod.toml` for why the shipped presets switch it on).
 
-use hexapod_core::robot::{NUM_JOINTS, NUM_LEGS};
+use hexapod_core::robot::{NUM_JOINTS, NUM_LEGS, TRIPOD_A_MASK, TRIPOD_B_MASK};
+
+/// A foot is in stance above this contact-force norm, N (also `hexapod eval`'s threshold).
+pub const STANCE_FORCE_N: f32 = 5.0;
+/// Commands below this speed (m/s, and rad/s for yaw) count as standing still.
+pub const MOVING_COMMAND_MIN: f32 = 0.05;
 use serde::{Deserialize, Serialize};
 
 /// Scales of the reward terms (the paper's values by default).
@@ -47,6 +56,8 @@ pub struct RewardScales {
     pub soft_velocity_limit: f32,
     /// Foot force where the penalty starts, N.
     pub max_contact_force_n: f32,
+    /// Stance set is exactly tripod A or B while commanded to move (not in Table I; 0 = off).
+    pub tripod_contact: f32,
 }
 
 impl Default for RewardScales {
@@ -69,12 +80,13 @@ impl Default for RewardScales {
             soft_torque_limit: 0.8,
             soft_velocity_limit: 0.9,
             max_contact_force_n: 150.0,
+            tripod_contact: 0.0,
         }
     }
 }
 
 /// Names of the terms, in the order of [`RewardTerms::values`].
-pub const TERM_NAMES: [&str; 11] = [
+pub const TERM_NAMES: [&str; NUM_TERMS] = [
     "tracking_lin_vel",
     "tracking_ang_vel",
     "lin_vel_z",
@@ -86,7 +98,11 @@ pub const TERM_NAMES: [&str; 11] = [
     "torque_limits",
     "joint_vel_limits",
     "contact_forces",
+    "tripod_contact",
 ];
+
+/// Number of reward terms.
+pub const NUM_TERMS: usize = 12;
 
 /// What the rewards are computed from (one policy step, one robot).
 pub struct RewardInputs<'a> {
@@ -120,7 +136,7 @@ pub struct RewardInputs<'a> {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct RewardTerms {
     /// In the order of [`TERM_NAMES`].
-    pub values: [f32; 11],
+    pub values: [f32; NUM_TERMS],
 }
 
 impl RewardTerms {
@@ -136,7 +152,7 @@ fn sq(v: &[f32]) -> f32 {
 
 /// Computes the weighted reward terms of one policy step of length `dt_s`.
 pub fn compute(scales: &RewardScales, x: &RewardInputs, dt_s: f32) -> RewardTerms {
-    let mut raw = [0.0f32; 11];
+    let mut raw = [0.0f32; NUM_TERMS];
     let lin_err = (x.lin_vel_base_m_s[0] - x.command[0]).powi(2)
         + (x.lin_vel_base_m_s[1] - x.command[1]).powi(2);
     raw[0] = (-lin_err / scales.tracking_sigma).exp();
@@ -160,6 +176,9 @@ pub fn compute(scales: &RewardScales, x: &RewardInputs, dt_s: f32) -> RewardTerm
         .iter()
         .map(|f| (sq(f).sqrt() - scales.max_contact_force_n).max(0.0))
         .sum();
+    let mask = stance_mask(x.foot_force_n);
+    let moving = x.command[0].hypot(x.command[1]) > MOVING_COMMAND_MIN || x.command[2].abs() > MOVING_COMMAND_MIN;
+    raw[11] = f32::from(u8::from(moving && (mask == TRIPOD_A_MASK || mask == TRIPOD_B_MASK)));
     let s = [
         scales.tracking_lin_vel,
         scales.tracking_ang_vel,
@@ -172,13 +191,20 @@ pub fn compute(scales: &RewardScales, x: &RewardInputs, dt_s: f32) -> RewardTerm
         scales.torque_limits,
         scales.joint_vel_limits,
         scales.contact_forces,
+        scales.tripod_contact,
     ];
     let mut terms = RewardTerms::default();
-    for k in 0..11 {
-        let on = if k < 2 { scales.task } else { scales.regularization };
+    for k in 0..NUM_TERMS {
+        // The gait term (last) is switched by its scale alone.
+        let on = if k < 2 { scales.task } else { k == NUM_TERMS - 1 || scales.regularization };
         terms.values[k] = if on { s[k] * raw[k] * dt_s } else { 0.0 };
     }
     terms
+}
+
+/// Feet in stance (bit i = leg i): contact-force norm above [`STANCE_FORCE_N`].
+pub fn stance_mask(foot_force_n: &[[f32; 3]; NUM_LEGS]) -> u8 {
+    (0..NUM_LEGS).filter(|&l| sq(&foot_force_n[l]).sqrt() > STANCE_FORCE_N).fold(0, |m, l| m | (1 << l))
 }
 
 #[cfg(test)]
@@ -231,5 +257,29 @@ mod tests {
         feet[0] = [0.0, 0.0, 200.0];
         let t = compute(&RewardScales::default(), &inputs(&z, &feet), 1.0);
         assert!((t.values[10] + 0.1 * 50.0).abs() < 1e-4);
+    }
+
+    #[test]
+    fn tripod_contact_rewards_only_a_tripod_stance_while_moving() {
+        let z = [0.0; NUM_JOINTS];
+        let scales = RewardScales { tripod_contact: 0.5, ..Default::default() };
+        let mut feet = [[0.0; 3]; NUM_LEGS];
+        for leg in (0..NUM_LEGS).filter(|l| TRIPOD_A_MASK & (1 << l) != 0) {
+            feet[leg] = [0.0, 0.0, 80.0];
+        }
+        assert_eq!(stance_mask(&feet), TRIPOD_A_MASK);
+        let t = compute(&scales, &inputs(&z, &feet), 1.0);
+        assert_eq!(t.values[11], 0.5);
+        // Off by default (the paper's Table I).
+        assert_eq!(compute(&RewardScales::default(), &inputs(&z, &feet), 1.0).values[11], 0.0);
+        // Standing still: no gait reward.
+        let mut standing = inputs(&z, &feet);
+        standing.command = [0.0; 3];
+        assert_eq!(compute(&scales, &standing, 1.0).values[11], 0.0);
+        // A fourth foot down (below the threshold it does not count).
+        feet[1] = [0.0, 0.0, 4.0];
+        assert_eq!(compute(&scales, &inputs(&z, &feet), 1.0).values[11], 0.5);
+        feet[1] = [0.0, 0.0, 6.0];
+        assert_eq!(compute(&scales, &inputs(&z, &feet), 1.0).values[11], 0.0);
     }
 }

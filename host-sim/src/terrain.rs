@@ -83,6 +83,16 @@ impl Default for TerrainConfig {
     }
 }
 
+/// Stair riser height at a difficulty in [0, 1], m.
+fn step_height_m(c: &TerrainConfig, difficulty: f32) -> f32 {
+    0.05 + (c.max_step_height_m - 0.05) * difficulty
+}
+
+/// Block height at a difficulty in [0, 1], m.
+fn obstacle_height_m(c: &TerrainConfig, difficulty: f32) -> f32 {
+    0.03 + (c.max_obstacle_height_m - 0.03) * difficulty
+}
+
 /// A generated terrain.
 #[derive(Clone, Debug)]
 pub struct Terrain {
@@ -128,6 +138,19 @@ impl Terrain {
         }
     }
 
+    /// The size of a tile's feature at a row, in words ("slope 12 deg", "steps 0.11 m").
+    pub fn feature(&self, kind: TileKind, row: usize) -> String {
+        let c = &self.config;
+        let d = self.difficulty(row);
+        match kind {
+            TileKind::Flat => "flat".into(),
+            TileKind::SmoothSlope => format!("slope {:.0} deg", c.max_slope_deg * d),
+            TileKind::RoughSlope => format!("slope {:.0} deg, noise +-{:.2} m", c.max_slope_deg * d, c.rough_noise_m * (0.5 + d)),
+            TileKind::StairsUp | TileKind::StairsDown => format!("steps {:.2} m", step_height_m(c, d)),
+            TileKind::DiscreteObstacles => format!("blocks +-{:.2} m", obstacle_height_m(c, d)),
+        }
+    }
+
     /// World position of the centre of tile (row, col), m.
     pub fn tile_center_m(&self, row: usize, col: usize) -> [f32; 2] {
         if !self.config.tiles {
@@ -146,9 +169,9 @@ impl Terrain {
         let half = c.tile_size_m / 2.0;
         let platform_half_m = 1.0;
         let slope = (c.max_slope_deg * difficulty).to_radians().tan();
-        let step_h = 0.05 + (c.max_step_height_m - 0.05) * difficulty;
+        let step_h = step_height_m(&c, difficulty);
         let obstacles: Vec<[f32; 5]> = if kind == TileKind::DiscreteObstacles {
-            let h = 0.03 + (c.max_obstacle_height_m - 0.03) * difficulty;
+            let h = obstacle_height_m(&c, difficulty);
             (0..40)
                 .map(|_| {
                     let w = rng.gen_range(0.3..1.0);

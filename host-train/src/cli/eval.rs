@@ -5,6 +5,7 @@
 
 use crate::checkpoint::load_for_inference;
 use crate::cli::play::set_command;
+use crate::cli::terrain_test::{terrain_test, TerrainTestResult};
 use crate::config::EnvKind;
 use crate::env::make_env;
 use anyhow::Context;
@@ -15,8 +16,8 @@ use hexapod_core::robot::{NUM_LEGS, TRIPOD_A_MASK, TRIPOD_B_MASK};
 use serde::Serialize;
 use std::path::PathBuf;
 
-/// A foot is in contact above this force, N.
-pub const CONTACT_THRESHOLD_N: f32 = 5.0;
+/// A foot is in contact above this force, N (the simulator's stance definition).
+pub const CONTACT_THRESHOLD_N: f32 = host_sim::rewards::STANCE_FORCE_N;
 /// Steps ignored after each reset before tracking is measured (1 s).
 pub const SETTLE_STEPS: usize = 50;
 /// The fixed commands `(vx m/s, vy m/s, wz rad/s)` evaluated by default.
@@ -41,6 +42,13 @@ pub struct EvalArgs {
     /// Environment override (`sim` or `fake`).
     #[arg(long, value_parser = ["sim", "fake"])]
     pub env: Option<String>,
+    /// Also run the terrain test for a policy trained on flat ground (it always runs for a
+    /// policy trained on terrain tiles).
+    #[arg(long)]
+    pub terrain: bool,
+    /// Robots per tile kind in the terrain test.
+    #[arg(long, default_value_t = 4)]
+    pub terrain_robots: usize,
 }
 
 /// Results at one fixed command.
@@ -111,6 +119,8 @@ pub struct EvalReport {
     pub estimator_error_m_s: f64,
     /// The push test (simulator only).
     pub push_test: Option<PushTestResult>,
+    /// The terrain test (simulator only; policies trained on tiles, or on request).
+    pub terrain_test: Option<TerrainTestResult>,
 }
 
 /// Speed change of the push test's pushes, m/s.
@@ -262,8 +272,15 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     }
     let m = results.len() as f64;
     let push = if cfg.env.kind == EnvKind::Sim { Some(push_test(&cfg, &mut ppo, n)?) } else { None };
+    let on_tiles = cfg.resolved_sim().terrain.tiles;
+    let terrain = if cfg.env.kind == EnvKind::Sim && (args.terrain || on_tiles) {
+        Some(terrain_test(&cfg, &mut ppo, args.terrain_robots)?)
+    } else {
+        None
+    };
     let report = EvalReport {
         push_test: push,
+        terrain_test: terrain,
         checkpoint: args.checkpoint.display().to_string(),
         env: format!("{:?}", cfg.env.kind).to_lowercase(),
         num_envs: n,
@@ -295,6 +312,9 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             "push test: {} robots at ({:.1},{:.1},{:.1}) for {:.0} s, {} pushes of {:.1} m/s each: fall rate {:.2}, mean vx {:.3} m/s",
             p.robots, p.command[0], p.command[1], p.command[2], p.duration_s, p.pushes_per_robot, p.push_m_s, p.fall_rate, p.mean_vx_m_s
         );
+    }
+    if let Some(t) = &report.terrain_test {
+        crate::cli::terrain_test::print(t);
     }
     println!(
         "mean: lin err {:.3} m/s, fall rate {:.2}, tripod score {:.2}, estimator error {:.3} m/s",

@@ -5,4 +5,5 @@ pub mod play;
 pub mod pretrain;
 pub mod priors;
 pub mod replay;
+pub mod terrain_test;
 pub mod train;

@@ -3,6 +3,7 @@
 //! domain randomization, pushes, command sampling and the terrain curriculum.
 
 use crate::config::{ConfigError, EnvConfig};
+use crate::curriculum::{curriculum_step, CommandPath, LevelChange};
 use crate::frames::{quat_from_yaw, rotate_inverse, yaw_rad};
 use crate::rewards::{self, RewardInputs, TERM_NAMES};
 use crate::robot::{BuildError, ContactState, DriveParams, RobotState, RobotWorld};
@@ -57,6 +58,7 @@ struct Slot {
     level: usize,
     column: usize,
     origin_m: [f32; 2],
+    command_path: CommandPath,
     command: [f32; 3],
     action: [f32; NUM_JOINTS],
     prev_action: [f32; NUM_JOINTS],
@@ -121,6 +123,7 @@ impl HexapodEnv {
                     level,
                     column: i % columns,
                     origin_m: [0.0; 2],
+                    command_path: CommandPath::new([0.0; 2], 0.0),
                     command: [0.0; 3],
                     action: [0.0; NUM_JOINTS],
                     prev_action: [0.0; NUM_JOINTS],
@@ -323,7 +326,8 @@ impl Slot {
         }
         let p = self.state.base_pos_world_m;
         let walked_m = ((p[0] - self.origin_m[0]).powi(2) + (p[1] - self.origin_m[1]).powi(2)).sqrt();
-        let commanded_m = (self.command[0].powi(2) + self.command[1].powi(2)).sqrt() * config.episode_length_s;
+        let remaining_s = config.episode_length_s - self.step as f32 * POLICY_DT_S;
+        let commanded_m = self.command_path.commanded_distance_m(self.command, remaining_s);
         let rows = config.terrain.rows;
         self.level = match curriculum_step(walked_m, commanded_m, config.terrain.tile_size_m) {
             LevelChange::Up if self.level + 1 >= rows => self.rng.gen_range(0..rows),
@@ -377,6 +381,7 @@ impl Slot {
         }
         let z = self.terrain.height_at_m(x, y) + SPAWN_HEIGHT_M;
         self.robot.reset([x, y, z], quat_from_yaw(yaw), &q);
+        self.command_path = CommandPath::new([x, y], yaw);
         self.sample_command(config);
         self.action = [0.0; NUM_JOINTS];
         self.prev_action = [0.0; NUM_JOINTS];
@@ -481,6 +486,7 @@ impl Slot {
             }
         }
         self.step += 1;
+        self.command_path.advance(self.command, POLICY_DT_S);
         self.state = self.robot.state();
         self.contacts = self.robot.contacts();
         self.contacts.foot_force_world_n = force_sum;
@@ -558,56 +564,5 @@ impl Slot {
             .collect();
         log.push(("episode_length_s".into(), length_s));
         log
-    }
-}
-
-/// What the terrain curriculum does with a robot at the end of an episode.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum LevelChange {
-    /// To the next harder row (past the hardest: a random row, as legged_gym).
-    Up,
-    /// To the next easier row.
-    Down,
-    /// Same row.
-    Stay,
-}
-
-/// Shortest commanded distance over an episode that can earn a promotion, m.
-pub const MIN_PROMOTION_COMMAND_M: f32 = 1.0;
-
-/// The curriculum rule: up after walking out of the tile (half its side) or 80% of the
-/// commanded distance, whichever is shorter; down after less than half of it. legged_gym
-/// asks for half the tile alone, which this robot's 0.5 m/s commands rarely reach in 20 s
-/// (4 m on an 8 m tile).
-pub fn curriculum_step(walked_m: f32, commanded_m: f32, tile_size_m: f32) -> LevelChange {
-    let goal_m = (tile_size_m / 2.0).min(0.8 * commanded_m);
-    if commanded_m >= MIN_PROMOTION_COMMAND_M && walked_m > goal_m {
-        LevelChange::Up
-    } else if walked_m < 0.5 * commanded_m {
-        LevelChange::Down
-    } else {
-        LevelChange::Stay
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn curriculum_promotes_on_the_commanded_distance_and_demotes_on_half_of_it() {
-        // 0.3 m/s for 20 s is 6 m commanded: half the 8 m tile earns the next row, under
-        // 3 m loses one.
-        assert_eq!(curriculum_step(4.1, 6.0, 8.0), LevelChange::Up);
-        // 0.2 m/s: 4 m commanded, 80% of it (3.2 m) earns the next row.
-        assert_eq!(curriculum_step(3.3, 4.0, 8.0), LevelChange::Up);
-        assert_eq!(curriculum_step(3.1, 4.0, 8.0), LevelChange::Stay);
-        assert_eq!(curriculum_step(3.5, 6.0, 8.0), LevelChange::Stay);
-        assert_eq!(curriculum_step(2.9, 6.0, 8.0), LevelChange::Down);
-        // Fast commands: half the tile suffices.
-        assert_eq!(curriculum_step(4.1, 10.0, 8.0), LevelChange::Up);
-        // Standing still neither promotes nor demotes.
-        assert_eq!(curriculum_step(0.2, 0.0, 8.0), LevelChange::Stay);
-        assert_eq!(curriculum_step(0.9, 0.8, 8.0), LevelChange::Stay);
     }
 }

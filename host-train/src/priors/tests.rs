@@ -285,16 +285,26 @@ fn committed_dataset_is_complete_and_tripod() {
 
 #[test]
 fn committed_dataset_is_what_the_generator_makes() {
-    let dir = committed_dir();
+    assert_dataset_is_fresh(&committed_dir(), &GeneratorConfig::default(), "hexapod priors --out assets/priors");
+}
+
+#[test]
+fn committed_climbing_dataset_is_what_the_generator_makes() {
+    let cfg = GeneratorConfig { swing_clearance_m: 0.14, ..GeneratorConfig::default() };
+    let dir = committed_dir().join("../priors-climb");
+    assert_dataset_is_fresh(&dir, &cfg, "hexapod priors --out assets/priors-climb --swing-clearance-m 0.14");
+}
+
+fn assert_dataset_is_fresh(dir: &std::path::Path, cfg: &GeneratorConfig, regenerate: &str) {
     for cmd in default_commands() {
-        let fresh = generate_clip(&cmd, &GeneratorConfig::default()).unwrap().0;
+        let fresh = generate_clip(&cmd, cfg).unwrap().0;
         let stored = MotionClip::load(&dir.join(format!("{}.json", cmd.name))).unwrap();
         assert_eq!(fresh.frames.len(), stored.frames.len(), "{}", cmd.name);
         for (k, (a, b)) in fresh.frames.iter().zip(&stored.frames).enumerate() {
             for (i, (x, y)) in a.to_row().iter().zip(b.to_row().iter()).enumerate() {
                 assert!(
                     (x - y).abs() < 1e-4,
-                    "{}: frame {k} {}: stale dataset, run `hexapod priors --out assets/priors`",
+                    "{}: frame {k} {}: stale dataset, run `{regenerate}`",
                     cmd.name,
                     super::frame::field_name(i)
                 );

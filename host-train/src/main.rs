@@ -24,6 +24,8 @@ enum Command {
     Play(cli::play::PlayArgs),
     /// Evaluate a checkpoint: tracking error, fall rate, tripod score.
     Eval(cli::eval::EvalArgs),
+    /// Draw a run's or checkpoint's metrics.csv as the training plots.
+    Plot(cli::plot::PlotArgs),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -36,5 +38,6 @@ fn main() -> anyhow::Result<()> {
         Command::Priors(args) => cli::priors::run(args),
         Command::Play(args) => cli::play::run(args),
         Command::Eval(args) => cli::eval::run(args),
+        Command::Plot(args) => cli::plot::run(args),
     }
 }

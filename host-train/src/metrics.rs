@@ -61,6 +61,39 @@ impl MetricsLog {
         std::fs::write(path, out)
     }
 
+    /// Reads a `metrics.csv` written by [`MetricsLog::write_csv`]; empty cells are missing
+    /// values. Errors name the line and column of a malformed cell.
+    pub fn read_csv(path: &Path) -> Result<Self, String> {
+        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let mut lines = text.lines();
+        let header: Vec<&str> = lines.next().ok_or_else(|| format!("{}: empty file", path.display()))?.split(',').collect();
+        if header.first() != Some(&"iteration") {
+            return Err(format!("{}: the first column must be `iteration`", path.display()));
+        }
+        let mut log = Self::new();
+        for (n, line) in lines.enumerate().filter(|(_, l)| !l.is_empty()) {
+            let cells: Vec<&str> = line.split(',').collect();
+            if cells.len() != header.len() {
+                return Err(format!("{}: line {}: {} cells, the header has {}", path.display(), n + 2, cells.len(), header.len()));
+            }
+            let mut row = BTreeMap::new();
+            for (key, cell) in header.iter().zip(&cells).filter(|(_, c)| !c.is_empty()) {
+                let value: f64 = cell.parse().map_err(|_| format!("{}: line {}: `{key}` is not a number: {cell:?}", path.display(), n + 2))?;
+                row.insert(key.to_string(), value);
+            }
+            if !row.contains_key("iteration") {
+                return Err(format!("{}: line {}: no iteration", path.display(), n + 2));
+            }
+            log.push(row);
+        }
+        Ok(log)
+    }
+
+    /// Keeps the rows up to `last_iteration` (a checkpoint's plots end where it does).
+    pub fn truncate_after(&mut self, last_iteration: f64) {
+        self.rows.retain(|r| r.get("iteration").is_some_and(|i| *i <= last_iteration));
+    }
+
     /// Draws one PNG per non-empty plot group into `dir`; returns the files written.
     pub fn plot(&self, dir: &Path) -> Result<Vec<PathBuf>, String> {
         let mut written = Vec::new();
@@ -150,6 +183,31 @@ mod tests {
         let files = log.plot(&dir).unwrap();
         assert_eq!(files.len(), 2);
         assert!(files.iter().all(|f| std::fs::metadata(f).unwrap().len() > 1000));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn csv_round_trips_and_bad_cells_are_named() {
+        let dir = std::env::temp_dir().join(format!("hexapod-metrics-rt-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut log = MetricsLog::new();
+        for i in 0..3 {
+            log.push(BTreeMap::from([("iteration".into(), i as f64), ("loss/value".into(), 0.5 * i as f64)]));
+        }
+        log.push(BTreeMap::from([("iteration".into(), 3.0)]));
+        log.write_csv(&dir.join("m.csv")).unwrap();
+        let mut back = MetricsLog::read_csv(&dir.join("m.csv")).unwrap();
+        assert_eq!(back.rows(), log.rows());
+        back.truncate_after(1.0);
+        assert_eq!(back.rows().len(), 2);
+
+        std::fs::write(dir.join("bad.csv"), "iteration,loss/value\n0,1\n1,abc\n").unwrap();
+        let err = MetricsLog::read_csv(&dir.join("bad.csv")).err().unwrap();
+        assert!(err.contains("line 3") && err.contains("loss/value"), "{err}");
+        std::fs::write(dir.join("short.csv"), "iteration,loss/value\n0\n").unwrap();
+        assert!(MetricsLog::read_csv(&dir.join("short.csv")).err().unwrap().contains("line 2"));
+        std::fs::write(dir.join("nohead.csv"), "loss/value\n1\n").unwrap();
+        assert!(MetricsLog::read_csv(&dir.join("nohead.csv")).is_err());
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -2,6 +2,7 @@
 
 pub mod eval;
 pub mod play;
+pub mod plot;
 pub mod pretrain;
 pub mod priors;
 pub mod replay;

@@ -3,7 +3,7 @@
 //! domain randomization, pushes, command sampling and the terrain curriculum.
 
 use crate::config::{ConfigError, EnvConfig};
-use crate::curriculum::{curriculum_step, CommandPath, LevelChange};
+use crate::curriculum::{curriculum_step, CommandProgress, LevelChange};
 use crate::frames::{quat_from_yaw, rotate_inverse, yaw_rad};
 use crate::rewards::{self, RewardInputs, TERM_NAMES};
 use crate::robot::{BuildError, ContactState, DriveParams, RobotState, RobotWorld};
@@ -58,7 +58,7 @@ struct Slot {
     level: usize,
     column: usize,
     origin_m: [f32; 2],
-    command_path: CommandPath,
+    command_progress: CommandProgress,
     command: [f32; 3],
     action: [f32; NUM_JOINTS],
     prev_action: [f32; NUM_JOINTS],
@@ -123,7 +123,7 @@ impl HexapodEnv {
                     level,
                     column: i % columns,
                     origin_m: [0.0; 2],
-                    command_path: CommandPath::new([0.0; 2], 0.0),
+                    command_progress: CommandProgress::default(),
                     command: [0.0; 3],
                     action: [0.0; NUM_JOINTS],
                     prev_action: [0.0; NUM_JOINTS],
@@ -293,6 +293,17 @@ impl VecEnv for HexapodEnv {
             result.episode_log = sums.into_iter().map(|(k, v)| (k, v / finished as f32)).collect();
             let mean_level = self.slots.iter().map(|s| s.level as f32).sum::<f32>() / n as f32;
             result.episode_log.push(("terrain_level".into(), mean_level));
+            if self.config.terrain.tiles {
+                // Per tile kind: a stalled column (stairs) hides in the mean over all robots.
+                for (column, kind) in self.config.terrain.columns.iter().enumerate() {
+                    let levels: Vec<f32> =
+                        self.slots.iter().filter(|s| s.column == column).map(|s| s.level as f32).collect();
+                    if !levels.is_empty() {
+                        let mean = levels.iter().sum::<f32>() / levels.len() as f32;
+                        result.episode_log.push((format!("terrain_level_{kind:?}"), mean));
+                    }
+                }
+            }
         }
         result
     }
@@ -324,10 +335,9 @@ impl Slot {
         if !(config.curriculum && config.terrain.tiles) {
             return;
         }
-        let p = self.state.base_pos_world_m;
-        let walked_m = ((p[0] - self.origin_m[0]).powi(2) + (p[1] - self.origin_m[1]).powi(2)).sqrt();
+        let walked_m = self.command_progress.progress_m();
         let remaining_s = config.episode_length_s - self.step as f32 * POLICY_DT_S;
-        let commanded_m = self.command_path.commanded_distance_m(self.command, remaining_s);
+        let commanded_m = self.command_progress.commanded_m(self.command, remaining_s);
         let rows = config.terrain.rows;
         self.level = match curriculum_step(walked_m, commanded_m, config.terrain.tile_size_m) {
             LevelChange::Up if self.level + 1 >= rows => self.rng.gen_range(0..rows),
@@ -381,7 +391,7 @@ impl Slot {
         }
         let z = self.terrain.height_at_m(x, y) + SPAWN_HEIGHT_M;
         self.robot.reset([x, y, z], quat_from_yaw(yaw), &q);
-        self.command_path = CommandPath::new([x, y], yaw);
+        self.command_progress = CommandProgress::default();
         self.sample_command(config);
         self.action = [0.0; NUM_JOINTS];
         self.prev_action = [0.0; NUM_JOINTS];
@@ -486,13 +496,13 @@ impl Slot {
             }
         }
         self.step += 1;
-        self.command_path.advance(self.command, POLICY_DT_S);
         self.state = self.robot.state();
         self.contacts = self.robot.contacts();
         self.contacts.foot_force_world_n = force_sum;
         let s = self.state;
         let lin_vel = rotate_inverse(s.base_quat_xyzw, s.base_lin_vel_world_m_s);
         let ang_vel = rotate_inverse(s.base_quat_xyzw, s.base_ang_vel_world_rad_s);
+        self.command_progress.advance(self.command, [lin_vel[0], lin_vel[1]], POLICY_DT_S);
         let mut qddot = [0.0; NUM_JOINTS];
         for j in 0..NUM_JOINTS {
             qddot[j] = (s.qdot_rad_s[j] - self.last_qdot[j]) / POLICY_DT_S;

@@ -1,5 +1,6 @@
 //! `hexapod play`: runs a checkpoint's policy (deterministic) and writes the trajectory
-//! (CSV), plots, and an animated 3D replay (GIF) of the first robot.
+//! (CSV), plots, and an animated 3D replay (GIF) of the first robot, on the checkpoint's
+//! ground or on one tile of the terrain grid (`--tile StairsUp --level 5`).
 
 use crate::checkpoint::load_for_inference;
 use crate::cli::replay::{render_replay, ReplayFrame};
@@ -14,6 +15,10 @@ use hexapod_core::obs::{
 };
 use hexapod_core::robot::JOINT_NAMES;
 use hexapod_core::timing::POLICY_DT_S;
+use host_sim::env::HexapodEnv;
+use host_sim::frames::quat_from_yaw;
+use host_sim::terrain::{Terrain, TerrainConfig};
+use host_sim::vec_env::VecEnv;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
@@ -38,6 +43,44 @@ pub struct PlayArgs {
     /// Skip the GIF replay.
     #[arg(long)]
     pub no_replay: bool,
+    /// Walk on this tile kind of the terrain grid (Flat, SmoothSlope, RoughSlope, StairsUp,
+    /// StairsDown, DiscreteObstacles); the checkpoint's grid, or the default one if it was
+    /// trained on flat ground.
+    #[arg(long)]
+    pub tile: Option<String>,
+    /// Terrain row (difficulty) of `--tile`; default the hardest.
+    #[arg(long, requires = "tile")]
+    pub level: Option<usize>,
+}
+
+/// The environment `play` drives: the simulator (with the robot's world pose and the
+/// ground for the replay) or the trainer's stand-in.
+enum PlayEnv {
+    Sim { env: HexapodEnv, terrain: Terrain },
+    Other(Box<dyn VecEnv>),
+}
+
+impl PlayEnv {
+    fn env(&mut self) -> &mut dyn VecEnv {
+        match self {
+            PlayEnv::Sim { env, .. } => env,
+            PlayEnv::Other(env) => env.as_mut(),
+        }
+    }
+}
+
+/// Puts robot 0 on the named tile (kind matched case-insensitively) at `level`.
+fn place_on_tile(env: &mut HexapodEnv, tile: &str, level: Option<usize>) -> anyhow::Result<()> {
+    let terrain = &env.config().terrain;
+    let column = terrain.columns.iter().position(|k| format!("{k:?}").eq_ignore_ascii_case(tile)).ok_or_else(|| {
+        let kinds: Vec<String> = terrain.columns.iter().map(|k| format!("{k:?}")).collect();
+        anyhow::anyhow!("--tile {tile}: not a tile kind of this grid ({})", kinds.join(", "))
+    })?;
+    let rows = terrain.rows;
+    let level = level.unwrap_or(rows - 1);
+    anyhow::ensure!(level < rows, "--level {level}: the grid has rows 0 to {}", rows - 1);
+    env.set_terrain_tile(0, level, column);
+    Ok(())
 }
 
 /// Overwrites the command slot of actor observations `[N, 63]`.
@@ -58,8 +101,28 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
     }
     let out = args.out.clone().unwrap_or_else(|| args.checkpoint.join("play"));
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
-    let mut env = make_env(&cfg)?;
-    let mut obs = env.reset();
+    let mut play_env = match cfg.env.kind {
+        EnvKind::Sim => {
+            let mut sim = cfg.resolved_sim();
+            if args.tile.is_some() {
+                if !sim.terrain.tiles {
+                    sim.terrain = TerrainConfig { tiles: true, ..TerrainConfig::default() };
+                }
+                sim.curriculum = false;
+            }
+            let terrain = Terrain::generate(&sim.terrain);
+            let mut env = HexapodEnv::new(sim)?;
+            if let Some(tile) = &args.tile {
+                place_on_tile(&mut env, tile, args.level)?;
+            }
+            PlayEnv::Sim { env, terrain }
+        }
+        _ => {
+            anyhow::ensure!(args.tile.is_none(), "--tile needs the simulator (env.kind = \"sim\")");
+            PlayEnv::Other(make_env(&cfg)?)
+        }
+    };
+    let mut obs = play_env.env().reset();
     let command = match args.command.as_deref() {
         None => None,
         Some([vx, vy, wz]) => Some([*vx, *vy, *wz]),
@@ -74,6 +137,8 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
     }
     csv.push('\n');
     let mut frames = Vec::with_capacity(args.steps);
+    // The stand-in has no world pose: integrate its planar velocity and yaw rate.
+    let (mut x, mut y, mut yaw) = (0.0f32, 0.0f32, 0.0f32);
     let (mut vel, mut cmd_series, mut q_series) = (vec![Vec::new(); 3], vec![Vec::new(); 3], vec![Vec::new(); 6]);
     for step in 0..args.steps {
         if let Some(c) = command {
@@ -91,7 +156,20 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
             amp[AMP_BASE_ANG_VEL.start + 2],
         ];
         let est = if act.estimate.is_empty() { [f32::NAN; 2] } else { [act.estimate[0] / LIN_VEL_SCALE, act.estimate[1] / LIN_VEL_SCALE] };
-        let res = env.step(&act.actions);
+        let (base_pos_world_m, base_quat_xyzw) = match &play_env {
+            PlayEnv::Sim { env, .. } => {
+                let s = env.robot_state(0);
+                (s.base_pos_world_m, s.base_quat_xyzw)
+            }
+            PlayEnv::Other(_) => {
+                let (c, s) = (yaw.cos(), yaw.sin());
+                x += (c * v[0] - s * v[1]) * POLICY_DT_S;
+                y += (s * v[0] + c * v[1]) * POLICY_DT_S;
+                yaw += v[2] * POLICY_DT_S;
+                ([x, y, amp[AMP_BASE_HEIGHT]], quat_from_yaw(yaw))
+            }
+        };
+        let res = play_env.env().step(&act.actions);
         write!(
             csv,
             "{t},{},{},{},{},{},{},{},{},{},{}",
@@ -114,7 +192,7 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
         }
         let mut q = [0.0f32; 18];
         q.copy_from_slice(&amp[AMP_JOINT_POS]);
-        frames.push(ReplayFrame { q_rad: q, lin_vel_base_m_s: [v[0], v[1]], yaw_rate_rad_s: v[2], base_height_m: amp[AMP_BASE_HEIGHT] });
+        frames.push(ReplayFrame { q_rad: q, base_pos_world_m, base_quat_xyzw });
         obs = res.obs;
     }
     std::fs::write(out.join("trajectory.csv"), csv)?;
@@ -129,7 +207,11 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
         q_series.into_iter().enumerate().map(|(j, s)| (format!("q {}", JOINT_NAMES[j]), s)).collect();
     line_plot(&out.join("joints_rf_rm.png"), "joint angles of RF and RM (rad)", "t (s)", &joint_series).map_err(anyhow::Error::msg)?;
     if !args.no_replay {
-        render_replay(&out.join("replay.gif"), &frames).map_err(anyhow::Error::msg)?;
+        let ground = |x: f32, y: f32| match &play_env {
+            PlayEnv::Sim { terrain, .. } => terrain.height_at_m(x, y),
+            PlayEnv::Other(_) => 0.0,
+        };
+        render_replay(&out.join("replay.gif"), &frames, &ground).map_err(anyhow::Error::msg)?;
     }
     eprintln!("wrote {} (trajectory.csv, plots{})", out.display(), if args.no_replay { "" } else { ", replay.gif" });
     Ok(())

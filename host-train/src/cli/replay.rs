@@ -1,10 +1,12 @@
 //! An animated 3D replay (GIF) of one robot: trunk box, legs as hip-coxa-thigh-shank stick
-//! figures from the joint angles, the base pose integrated from its planar velocity and yaw
-//! rate, and a ground grid that moves under the robot.
+//! figures from the joint angles, at the base's world pose (roll and pitch included), over
+//! the ground around it: a height grid that follows the terrain (steps, slopes, blocks) and
+//! moves under the robot.
 
 use hexapod_core::kinematics::foot_position_base;
 use hexapod_core::robot::{Leg, COXA_LENGTH_M, HIP_POS_BASE_M, MOUNT_YAW_RAD, NUM_JOINTS, THIGH_LENGTH_M, TRUNK_SIZE_M};
 use hexapod_core::timing::POLICY_DT_S;
+use host_sim::frames::rotate;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -13,13 +15,20 @@ use std::path::Path;
 pub struct ReplayFrame {
     /// Joint angles (absolute), joint order.
     pub q_rad: [f32; NUM_JOINTS],
-    /// Base planar velocity (base frame).
-    pub lin_vel_base_m_s: [f32; 2],
-    /// Yaw rate.
-    pub yaw_rate_rad_s: f32,
-    /// Base height above the terrain.
-    pub base_height_m: f32,
+    /// Base position, world, m.
+    pub base_pos_world_m: [f32; 3],
+    /// Base orientation, world, quaternion (x, y, z, w).
+    pub base_quat_xyzw: [f32; 4],
 }
+
+/// Half the side of the square of ground drawn around the robot, m.
+const VIEW_HALF_M: f32 = 0.7;
+/// Height of the drawn volume, m: as wide as it is high, so the plot's unit cube keeps the
+/// robot's proportions.
+const VIEW_HEIGHT_M: f32 = 2.0 * VIEW_HALF_M;
+/// Spacing of the ground grid's lines, and of the samples along them, m.
+const GRID_LINE_M: f32 = 0.1;
+const GRID_SAMPLE_M: f32 = 0.025;
 
 /// Points of one leg in the base frame: hip, coxa end (thigh axis), knee, foot.
 pub fn leg_points_base(leg: Leg, q: [f32; 3]) -> [[f32; 3]; 4] {
@@ -33,54 +42,42 @@ pub fn leg_points_base(leg: Leg, q: [f32; 3]) -> [[f32; 3]; 4] {
     [hip, coxa, knee, foot_position_base(leg, q)]
 }
 
-/// Renders the frames (every `stride`-th, real-time playback) into an animated GIF.
-pub fn render_replay(path: &Path, frames: &[ReplayFrame]) -> Result<(), String> {
-    let stride = 2usize; // 25 frames per second
+/// Renders the frames (every other one: 25 per second, real-time playback) into an animated
+/// GIF. `ground_height_m(x, y)` is the terrain height under a world point.
+pub fn render_replay(path: &Path, frames: &[ReplayFrame], ground_height_m: &dyn Fn(f32, f32) -> f32) -> Result<(), String> {
+    let stride = 2usize;
     let delay_ms = (1000.0 * POLICY_DT_S * stride as f32) as u32;
     let root = BitMapBackend::gif(path, (640, 480), delay_ms).map_err(|e| e.to_string())?.into_drawing_area();
-    let (mut x, mut y, mut yaw) = (0.0f32, 0.0f32, 0.0f32);
-    for (k, f) in frames.iter().enumerate() {
-        let (c, s) = (yaw.cos(), yaw.sin());
-        x += (c * f.lin_vel_base_m_s[0] - s * f.lin_vel_base_m_s[1]) * POLICY_DT_S;
-        y += (s * f.lin_vel_base_m_s[0] + c * f.lin_vel_base_m_s[1]) * POLICY_DT_S;
-        yaw += f.yaw_rate_rad_s * POLICY_DT_S;
-        if k % stride != 0 {
-            continue;
-        }
-        let z0 = f.base_height_m;
+    for (k, f) in frames.iter().enumerate().step_by(stride) {
+        let [px, py, pz] = f.base_pos_world_m;
+        // Plot axes: x = world x, y = up, z = world y.
+        let to_plot = |p: [f32; 3]| -> (f64, f64, f64) { (p[0] as f64, p[2] as f64, p[1] as f64) };
         let to_world = |p: [f32; 3]| -> (f64, f64, f64) {
-            ((x + c * p[0] - s * p[1]) as f64, (p[2] + z0) as f64, (y + s * p[0] + c * p[1]) as f64)
+            let r = rotate(f.base_quat_xyzw, p);
+            to_plot([px + r[0], py + r[1], pz + r[2]])
         };
+        let floor_m = ground_height_m(px, py) - 0.45;
         root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let half = 0.8f64;
-        let (cx, cy) = (x as f64, y as f64);
+        let half = VIEW_HALF_M as f64;
         let mut chart = ChartBuilder::on(&root)
             .caption(format!("t = {:.2} s", k as f32 * POLICY_DT_S), ("sans-serif", 18))
             .margin(8)
-            .build_cartesian_3d(cx - half..cx + half, 0.0..0.6f64, cy - half..cy + half)
+            .build_cartesian_3d(
+                px as f64 - half..px as f64 + half,
+                floor_m as f64..(floor_m + VIEW_HEIGHT_M) as f64,
+                py as f64 - half..py as f64 + half,
+            )
             .map_err(|e| e.to_string())?;
         chart.with_projection(|mut pb| {
             pb.yaw = 0.6;
-            pb.pitch = 0.35;
-            pb.scale = 0.9;
+            pb.pitch = 0.45;
+            pb.scale = 1.1;
             pb.into_matrix()
         });
-        // Ground grid, 0.2 m, anchored in the world so it slides under a walking robot.
-        let step = 0.2f64;
-        let start = |v: f64| ((v - half) / step).ceil() * step;
-        let mut g = start(cx);
-        while g <= cx + half {
+        for line in ground_grid(px, py, ground_height_m) {
             chart
-                .draw_series(LineSeries::new([(g, 0.0, cy - half), (g, 0.0, cy + half)], RGBColor(200, 200, 200)))
+                .draw_series(LineSeries::new(line.into_iter().map(to_plot), RGBColor(110, 110, 110)))
                 .map_err(|e| e.to_string())?;
-            g += step;
-        }
-        let mut g = start(cy);
-        while g <= cy + half {
-            chart
-                .draw_series(LineSeries::new([(cx - half, 0.0, g), (cx + half, 0.0, g)], RGBColor(200, 200, 200)))
-                .map_err(|e| e.to_string())?;
-            g += step;
         }
         let (hx, hy) = (TRUNK_SIZE_M[0] / 2.0, TRUNK_SIZE_M[1] / 2.0);
         let trunk = [[hx, hy, 0.0], [hx, -hy, 0.0], [-hx, -hy, 0.0], [-hx, hy, 0.0], [hx, hy, 0.0]];
@@ -100,6 +97,27 @@ pub fn render_replay(path: &Path, frames: &[ReplayFrame]) -> Result<(), String> 
     Ok(())
 }
 
+/// The ground around (`cx`, `cy`) as polylines in the world frame: lines every
+/// [`GRID_LINE_M`] along x and along y, anchored in the world (so they slide under a walking
+/// robot), sampled finely enough to draw a stair's riser as a step.
+fn ground_grid(cx: f32, cy: f32, ground_height_m: &dyn Fn(f32, f32) -> f32) -> Vec<Vec<[f32; 3]>> {
+    // Grid lines at whole multiples of GRID_LINE_M within the view (by index: no drift).
+    let line_indices = |c: f32| {
+        let lo = ((c - VIEW_HALF_M) / GRID_LINE_M - 1e-3).ceil() as i64;
+        let hi = ((c + VIEW_HALF_M) / GRID_LINE_M + 1e-3).floor() as i64;
+        (lo..=hi).map(|k| k as f32 * GRID_LINE_M)
+    };
+    let samples = (2.0 * VIEW_HALF_M / GRID_SAMPLE_M).round() as usize + 1;
+    let along = |c: f32, i: usize| c - VIEW_HALF_M + i as f32 * GRID_SAMPLE_M;
+    let mut lines: Vec<Vec<[f32; 3]>> = line_indices(cx)
+        .map(|x| (0..samples).map(|i| { let y = along(cy, i); [x, y, ground_height_m(x, y)] }).collect())
+        .collect();
+    lines.extend(
+        line_indices(cy).map(|y| (0..samples).map(|i| { let x = along(cx, i); [x, y, ground_height_m(x, y)] }).collect()),
+    );
+    lines
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -114,6 +132,22 @@ mod tests {
             // The shank segment (knee -> foot) has the shank's length.
             let d: f32 = (0..3).map(|k| (pts[3][k] - pts[2][k]).powi(2)).sum::<f32>().sqrt();
             assert!((d - hexapod_core::robot::SHANK_LENGTH_M).abs() < 1e-5, "{d}");
+        }
+    }
+
+    #[test]
+    fn ground_grid_follows_the_terrain() {
+        // A 10 cm step at x = 0.3: the lines across it carry both heights.
+        let step = |x: f32, _y: f32| if x > 0.3 { 0.1 } else { 0.0 };
+        let lines = ground_grid(0.0, 0.0, &step);
+        assert_eq!(lines.len(), 2 * 15);
+        let across = lines.iter().find(|l| l[0][1] == l[l.len() - 1][1]).unwrap();
+        assert!(across.iter().any(|p| p[2] == 0.1) && across.iter().any(|p| p[2] == 0.0));
+        for line in &lines {
+            for p in line {
+                assert!(p[0].abs() <= VIEW_HALF_M + 2e-3 && p[1].abs() <= VIEW_HALF_M + 2e-3);
+                assert_eq!(p[2], step(p[0], p[1]));
+            }
         }
     }
 }

@@ -10,7 +10,9 @@ use std::path::Path;
 #[test]
 fn every_preset_trains_an_iteration_on_the_simulator() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    for name in ["default", "ablation-gs", "ablation-gl", "ablation-gsl", "baseline", "concurrent", "paper"] {
+    for name in [
+        "default", "ablation-gs", "ablation-gl", "ablation-gsl", "baseline", "concurrent", "paper", "flat-tripod", "rough-tripod", "rough-climb",
+    ] {
         let mut cfg = TrainConfig::load(&root.join(format!("configs/{name}.toml"))).unwrap();
         assert_eq!(cfg.env.kind, EnvKind::Sim, "{name}");
         cfg.env.num_envs = 4;

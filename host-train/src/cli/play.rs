@@ -13,10 +13,11 @@ use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_BASE_HEIGHT, AMP_JOINT_POS, AMP_ST
 use hexapod_core::obs::{
     ACTOR_COMMAND, ACTOR_OBS_DIM, COMMAND_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_LIN_VEL,
 };
-use hexapod_core::robot::JOINT_NAMES;
+use hexapod_core::amp::AMP_FOOT_POS;
+use hexapod_core::robot::{FOOT_RADIUS_M, JOINT_NAMES, LEG_NAMES, NUM_LEGS};
 use hexapod_core::timing::POLICY_DT_S;
 use host_sim::env::HexapodEnv;
-use host_sim::frames::quat_from_yaw;
+use host_sim::frames::{quat_from_yaw, rotate};
 use host_sim::terrain::{Terrain, TerrainConfig};
 use host_sim::vec_env::VecEnv;
 use std::fmt::Write as _;
@@ -67,6 +68,19 @@ impl PlayEnv {
             PlayEnv::Other(env) => env.as_mut(),
         }
     }
+}
+
+/// Height of each foot's sole above the ground straight under it, m, from the AMP state's
+/// foot positions (base frame) and the base's world pose.
+fn foot_clearance_m(foot_pos_base_m: &[f32], base_pos_world_m: [f32; 3], base_quat_xyzw: [f32; 4], terrain: &Terrain) -> [f32; NUM_LEGS] {
+    let mut clearance = [0.0; NUM_LEGS];
+    for (leg, c) in clearance.iter_mut().enumerate() {
+        let p = &foot_pos_base_m[3 * leg..3 * leg + 3];
+        let r = rotate(base_quat_xyzw, [p[0], p[1], p[2]]);
+        let world = [base_pos_world_m[0] + r[0], base_pos_world_m[1] + r[1], base_pos_world_m[2] + r[2]];
+        *c = world[2] - FOOT_RADIUS_M - terrain.height_at_m(world[0], world[1]);
+    }
+    clearance
 }
 
 /// Puts robot 0 on the named tile (kind matched case-insensitively) at `level`.
@@ -135,11 +149,15 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
     for name in JOINT_NAMES {
         write!(csv, ",a_{name}").ok();
     }
+    for name in LEG_NAMES {
+        write!(csv, ",clearance_m_{name}").ok();
+    }
     csv.push('\n');
     let mut frames = Vec::with_capacity(args.steps);
     // The stand-in has no world pose: integrate its planar velocity and yaw rate.
     let (mut x, mut y, mut yaw) = (0.0f32, 0.0f32, 0.0f32);
     let (mut vel, mut cmd_series, mut q_series) = (vec![Vec::new(); 3], vec![Vec::new(); 3], vec![Vec::new(); 6]);
+    let mut clearance_series = vec![Vec::new(); NUM_LEGS];
     for step in 0..args.steps {
         if let Some(c) = command {
             set_command(&mut obs.actor, c);
@@ -182,7 +200,6 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
         for x in &act.actions[..18] {
             write!(csv, ",{x}").ok();
         }
-        csv.push('\n');
         for k in 0..3 {
             vel[k].push((t as f64, v[k] as f64));
             cmd_series[k].push((t as f64, cmd[k] as f64));
@@ -192,6 +209,15 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
         }
         let mut q = [0.0f32; 18];
         q.copy_from_slice(&amp[AMP_JOINT_POS]);
+        let clearance_m = match &play_env {
+            PlayEnv::Sim { terrain, .. } => foot_clearance_m(&amp[AMP_FOOT_POS], base_pos_world_m, base_quat_xyzw, terrain),
+            PlayEnv::Other(_) => [f32::NAN; NUM_LEGS],
+        };
+        for (leg, c) in clearance_m.iter().enumerate() {
+            write!(csv, ",{c}").ok();
+            clearance_series[leg].push((t as f64, *c as f64));
+        }
+        csv.push('\n');
         frames.push(ReplayFrame { q_rad: q, base_pos_world_m, base_quat_xyzw });
         obs = res.obs;
     }
@@ -206,6 +232,12 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
     let joint_series: Vec<(String, Vec<(f64, f64)>)> =
         q_series.into_iter().enumerate().map(|(j, s)| (format!("q {}", JOINT_NAMES[j]), s)).collect();
     line_plot(&out.join("joints_rf_rm.png"), "joint angles of RF and RM (rad)", "t (s)", &joint_series).map_err(anyhow::Error::msg)?;
+    if matches!(play_env, PlayEnv::Sim { .. }) {
+        let series: Vec<(String, Vec<(f64, f64)>)> =
+            clearance_series.into_iter().enumerate().map(|(leg, s)| (LEG_NAMES[leg].to_string(), s)).collect();
+        line_plot(&out.join("foot_clearance.png"), "foot clearance above the ground under it (m)", "t (s)", &series)
+            .map_err(anyhow::Error::msg)?;
+    }
     if !args.no_replay {
         let ground = |x: f32, y: f32| match &play_env {
             PlayEnv::Sim { terrain, .. } => terrain.height_at_m(x, y),

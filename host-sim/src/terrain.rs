@@ -138,14 +138,15 @@ impl Terrain {
         }
     }
 
-    /// The size of a tile's feature at a row, in words ("slope 12 deg", "steps 0.11 m").
+    /// The size of a tile's feature at a row, in words ("slope 12 deg down", "steps 0.11 m"),
+    /// seen by a robot walking out from the tile's centre.
     pub fn feature(&self, kind: TileKind, row: usize) -> String {
         let c = &self.config;
         let d = self.difficulty(row);
         match kind {
             TileKind::Flat => "flat".into(),
-            TileKind::SmoothSlope => format!("slope {:.0} deg", c.max_slope_deg * d),
-            TileKind::RoughSlope => format!("slope {:.0} deg, noise +-{:.2} m", c.max_slope_deg * d, c.rough_noise_m * (0.5 + d)),
+            TileKind::SmoothSlope => format!("slope {:.0} deg down", c.max_slope_deg * d),
+            TileKind::RoughSlope => format!("slope {:.0} deg up, noise +-{:.2} m", c.max_slope_deg * d, c.rough_noise_m * (0.5 + d)),
             TileKind::StairsUp | TileKind::StairsDown => format!("steps {:.2} m", step_height_m(c, d)),
             TileKind::DiscreteObstacles => format!("blocks +-{:.2} m", obstacle_height_m(c, d)),
         }

@@ -86,7 +86,9 @@ fn foot_clearance_m(foot_pos_base_m: &[f32], base_pos_world_m: [f32; 3], base_qu
 /// Puts robot 0 on the named tile (kind matched case-insensitively) at `level`.
 fn place_on_tile(env: &mut HexapodEnv, tile: &str, level: Option<usize>) -> anyhow::Result<()> {
     let terrain = &env.config().terrain;
-    let column = terrain.columns.iter().position(|k| format!("{k:?}").eq_ignore_ascii_case(tile)).ok_or_else(|| {
+    // `StairsUp`, `stairsup` and the configs' `stairs_up` all name the same kind.
+    let key = |name: &str| name.replace('_', "").to_ascii_lowercase();
+    let column = terrain.columns.iter().position(|k| key(&format!("{k:?}")) == key(tile)).ok_or_else(|| {
         let kinds: Vec<String> = terrain.columns.iter().map(|k| format!("{k:?}")).collect();
         anyhow::anyhow!("--tile {tile}: not a tile kind of this grid ({})", kinds.join(", "))
     })?;

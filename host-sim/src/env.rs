@@ -18,8 +18,10 @@ use hexapod_core::obs::{
     PRIV_COLLISIONS, PRIV_CONTACT_FORCES, PRIV_FRICTION, PRIV_LIN_VEL, PRIV_PERTURBATION,
     PROPRIO_DIM,
 };
+use hexapod_core::kinematics::foot_position_base;
 use hexapod_core::robot::{
-    NUM_JOINTS, NUM_LEGS, Q0_RAD, Q_MAX_RAD, Q_MIN_RAD, TORQUE_LIMIT_NM, VELOCITY_LIMIT_RAD_S,
+    Leg, FOOT_RADIUS_M, NUM_JOINTS, NUM_LEGS, Q0_RAD, Q_MAX_RAD, Q_MIN_RAD, TORQUE_LIMIT_NM,
+    VELOCITY_LIMIT_RAD_S,
 };
 use hexapod_core::timing::{
     ACTION_SCALE_RAD, CSP_KP1_PER_S, CSP_KP2_NMS_PER_RAD, DECIMATION, POLICY_DT_S,
@@ -33,6 +35,8 @@ use std::sync::Arc;
 const NOMINAL_STIFFNESS_NM_PER_RAD: f32 = CSP_KP1_PER_S * CSP_KP2_NMS_PER_RAD;
 /// Spawn height above the terrain, m (the robot settles onto its feet).
 const SPAWN_HEIGHT_M: f32 = 0.33;
+/// Least gap between a foot and the ground under it at spawn, m.
+const SPAWN_FOOT_GAP_M: f32 = 0.01;
 /// A foot counts as in contact above this normal force, N.
 pub const CONTACT_THRESHOLD_N: f32 = 1.0;
 
@@ -309,6 +313,22 @@ impl VecEnv for HexapodEnv {
     }
 }
 
+/// Base height at which a robot spawns at `xy` with heading `yaw_rad` and joints `q`:
+/// [`SPAWN_HEIGHT_M`] above the ground under the base, or higher where a foot would
+/// otherwise start inside the ground under it (a foot over the first step of a stair tile,
+/// or over a block). A foot spawned inside a heightfield falls through it.
+fn spawn_height_m(terrain: &Terrain, xy: [f32; 2], yaw_rad: f32, q: &[f32; NUM_JOINTS]) -> f32 {
+    let (sin, cos) = yaw_rad.sin_cos();
+    let mut z = terrain.height_at_m(xy[0], xy[1]) + SPAWN_HEIGHT_M;
+    for leg in Leg::ALL {
+        let j = 3 * leg.index();
+        let p = foot_position_base(leg, [q[j], q[j + 1], q[j + 2]]);
+        let (fx, fy) = (xy[0] + cos * p[0] - sin * p[1], xy[1] + sin * p[0] + cos * p[1]);
+        z = z.max(terrain.height_at_m(fx, fy) - p[2] + FOOT_RADIUS_M + SPAWN_FOOT_GAP_M);
+    }
+    z
+}
+
 fn uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f32; 2]) -> f32 {
     if hi > lo {
         rng.gen_range(lo..hi)
@@ -389,7 +409,7 @@ impl Slot {
                     .clamp(Q_MIN_RAD[j], Q_MAX_RAD[j]);
             }
         }
-        let z = self.terrain.height_at_m(x, y) + SPAWN_HEIGHT_M;
+        let z = spawn_height_m(&self.terrain, [x, y], yaw, &q);
         self.robot.reset([x, y, z], quat_from_yaw(yaw), &q);
         self.command_progress = CommandProgress::default();
         self.sample_command(config);

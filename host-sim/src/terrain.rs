@@ -322,3 +322,42 @@ mod tests {
         assert_eq!(tiles().heights_m, tiles().heights_m);
     }
 }
+
+#[cfg(test)]
+mod collider_tests {
+    use super::*;
+    use rapier3d::parry::query::{Ray, RayCast};
+    use rapier3d::prelude::Vector;
+
+    #[test]
+    fn collider_surface_matches_the_height_lookup() {
+        let t = Terrain::generate(&TerrainConfig { tiles: true, rows: 4, ..Default::default() });
+        let ground = t.collider();
+        let mut worst = 0.0f32;
+        for row in 0..4 {
+            for col in 0..6 {
+                let [cx, cy] = t.tile_center_m(row, col);
+                for k in 0..400 {
+                    // Off-lattice points (a lattice point hides a transposed or shifted grid).
+                    let x = cx - 3.0 + (k % 20) as f32 * 0.3137;
+                    let y = cy - 3.0 + (k / 20) as f32 * 0.2971;
+                    let ray = Ray::new(Vector::new(x, y, 5.0).into(), Vector::new(1e-4, 1e-4, -1.0).normalize());
+                    // A ray straight down misses parry's heightfield: tilt it by 1e-4.
+                    let toi = ground.shape().cast_ray(ground.position(), &ray, 20.0, true).expect("ray hits the ground");
+                    let z = 5.0 - toi;
+                    // Within one cell the two triangles and the bilinear lookup agree where
+                    // the cell's corners are level, and differ by less than its corners'
+                    // spread (a riser crossing the cell) elsewhere.
+                    let cell = t.config.cell_size_m;
+                    let (ix, iy) = ((x / cell) as usize, (y / cell) as usize);
+                    let corners = [(ix, iy), (ix + 1, iy), (ix, iy + 1), (ix + 1, iy + 1)].map(|(i, j)| t.heights_m[i * t.ny + j]);
+                    let spread = corners.iter().cloned().fold(f32::MIN, f32::max) - corners.iter().cloned().fold(f32::MAX, f32::min);
+                    let error = (z - t.height_at_m(x, y)).abs();
+                    assert!(error <= spread + 2e-3, "at ({x}, {y}): collider {z} m, lookup {} m", t.height_at_m(x, y));
+                    worst = worst.max(error - spread);
+                }
+            }
+        }
+        assert!(worst < 2e-3, "collider and height lookup differ by {worst} m beyond the cells' spread");
+    }
+}

@@ -129,3 +129,36 @@ fn time_out_is_flagged_for_bootstrapping() {
     assert!(r.dones[0] && r.time_outs[0]);
     assert!(r.episode_log.iter().any(|(k, _)| k == "rew_tracking_lin_vel"));
 }
+
+#[test]
+fn robots_spawned_on_stairs_and_blocks_stand() {
+    // Spawns near a stair tile's platform edge put feet over the first step; each must
+    // start above the ground under it (a foot inside the heightfield falls through it and
+    // the robot sinks onto its trunk: 6 of 8 robots on 6 cm stairs did before).
+    use host_sim::terrain::TileKind;
+    let mut c = quiet_config(24);
+    c.terrain.tiles = true;
+    c.terrain.rows = 3;
+    c.curriculum = false;
+    let mut env = HexapodEnv::new(c).unwrap();
+    let columns = env.config().terrain.columns.clone();
+    let kinds = [TileKind::StairsUp, TileKind::StairsDown, TileKind::DiscreteObstacles];
+    for i in 0..24 {
+        let column = columns.iter().position(|k| *k == kinds[i % 3]).unwrap();
+        env.set_terrain_tile(i, 1 + i % 2, column);
+    }
+    env.reset();
+    for step in 0..100 {
+        let r = env.step(&vec![0.0; 24 * NUM_JOINTS]);
+        let fallen: Vec<usize> = (0..24).filter(|&i| r.dones[i]).collect();
+        assert!(fallen.is_empty(), "robots {fallen:?} ended at step {step}");
+    }
+    for i in 0..24 {
+        let s = env.robot_state(i);
+        let up = s.base_quat_xyzw;
+        // Upright: the base's z axis within 45 deg of vertical (legs in q0 on steps 20 cm
+        // apart tilt the body by about 30 deg).
+        let z_axis_z = 1.0 - 2.0 * (up[0] * up[0] + up[1] * up[1]);
+        assert!(z_axis_z > 45f32.to_radians().cos(), "robot {i} tilted: {z_axis_z}");
+    }
+}

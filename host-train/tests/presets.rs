@@ -12,6 +12,7 @@ fn every_preset_trains_an_iteration_on_the_simulator() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     for name in [
         "default", "ablation-gs", "ablation-gl", "ablation-gsl", "baseline", "concurrent", "paper", "flat-tripod", "rough-tripod", "rough-climb",
+        "rough-climb-hard",
     ] {
         let mut cfg = TrainConfig::load(&root.join(format!("configs/{name}.toml"))).unwrap();
         assert_eq!(cfg.env.kind, EnvKind::Sim, "{name}");

@@ -326,7 +326,7 @@ mod tests {
 #[cfg(test)]
 mod collider_tests {
     use super::*;
-    use rapier3d::parry::query::{Ray, RayCast};
+    use rapier3d::parry::query::Ray;
     use rapier3d::prelude::Vector;
 
     #[test]

@@ -5,7 +5,7 @@
 use hexapod_core::canopen::cia402::DriveRequest;
 use hexapod_core::canopen::master::NodeFault;
 use hexapod_core::rc::receiver::RcState;
-use hexapod_core::robot::{NUM_JOINTS, Q0_RAD, Q_SIT_RAD};
+use hexapod_core::robot::{Q0_RAD, Q_SIT_RAD};
 use hexapod_core::supervisor::{Inputs, Mode, Supervisor, SupervisorConfig};
 use proptest::prelude::*;
 

@@ -93,6 +93,7 @@ struct SlotStep {
 /// N simulated hexapods.
 pub struct HexapodEnv {
     config: EnvConfig,
+    terrain: Arc<Terrain>,
     slots: Vec<Slot>,
     max_episode_steps: usize,
 }
@@ -146,12 +147,17 @@ impl HexapodEnv {
                 })
             })
             .collect();
-        Ok(Self { config, slots: slots?, max_episode_steps })
+        Ok(Self { config, terrain, slots: slots?, max_episode_steps })
     }
 
     /// The config in force.
     pub fn config(&self) -> &EnvConfig {
         &self.config
+    }
+
+    /// The ground all robots walk on.
+    pub fn terrain(&self) -> &Terrain {
+        &self.terrain
     }
 
     /// Kinematic state of robot `i`.
@@ -300,11 +306,13 @@ impl VecEnv for HexapodEnv {
             if self.config.terrain.tiles {
                 // Per tile kind: a stalled column (stairs) hides in the mean over all robots.
                 for (column, kind) in self.config.terrain.columns.iter().enumerate() {
-                    let levels: Vec<f32> =
-                        self.slots.iter().filter(|s| s.column == column).map(|s| s.level as f32).collect();
-                    if !levels.is_empty() {
-                        let mean = levels.iter().sum::<f32>() / levels.len() as f32;
-                        result.episode_log.push((format!("terrain_level_{kind:?}"), mean));
+                    let (sum, count) = self
+                        .slots
+                        .iter()
+                        .filter(|s| s.column == column)
+                        .fold((0usize, 0usize), |(sum, count), s| (sum + s.level, count + 1));
+                    if count > 0 {
+                        result.episode_log.push((format!("terrain_level_{kind:?}"), sum as f32 / count as f32));
                     }
                 }
             }

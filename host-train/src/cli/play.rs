@@ -57,14 +57,14 @@ pub struct PlayArgs {
 /// The environment `play` drives: the simulator (with the robot's world pose and the
 /// ground for the replay) or the trainer's stand-in.
 enum PlayEnv {
-    Sim { env: HexapodEnv, terrain: Terrain },
+    Sim(HexapodEnv),
     Other(Box<dyn VecEnv>),
 }
 
 impl PlayEnv {
     fn env(&mut self) -> &mut dyn VecEnv {
         match self {
-            PlayEnv::Sim { env, .. } => env,
+            PlayEnv::Sim(env) => env,
             PlayEnv::Other(env) => env.as_mut(),
         }
     }
@@ -126,12 +126,11 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
                 }
                 sim.curriculum = false;
             }
-            let terrain = Terrain::generate(&sim.terrain);
             let mut env = HexapodEnv::new(sim)?;
             if let Some(tile) = &args.tile {
                 place_on_tile(&mut env, tile, args.level)?;
             }
-            PlayEnv::Sim { env, terrain }
+            PlayEnv::Sim(env)
         }
         _ => {
             anyhow::ensure!(args.tile.is_none(), "--tile needs the simulator (env.kind = \"sim\")");
@@ -177,7 +176,7 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
         ];
         let est = if act.estimate.is_empty() { [f32::NAN; 2] } else { [act.estimate[0] / LIN_VEL_SCALE, act.estimate[1] / LIN_VEL_SCALE] };
         let (base_pos_world_m, base_quat_xyzw) = match &play_env {
-            PlayEnv::Sim { env, .. } => {
+            PlayEnv::Sim(env) => {
                 let s = env.robot_state(0);
                 (s.base_pos_world_m, s.base_quat_xyzw)
             }
@@ -212,7 +211,7 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
         let mut q = [0.0f32; 18];
         q.copy_from_slice(&amp[AMP_JOINT_POS]);
         let clearance_m = match &play_env {
-            PlayEnv::Sim { terrain, .. } => foot_clearance_m(&amp[AMP_FOOT_POS], base_pos_world_m, base_quat_xyzw, terrain),
+            PlayEnv::Sim(env) => foot_clearance_m(&amp[AMP_FOOT_POS], base_pos_world_m, base_quat_xyzw, env.terrain()),
             PlayEnv::Other(_) => [f32::NAN; NUM_LEGS],
         };
         for (leg, c) in clearance_m.iter().enumerate() {
@@ -234,7 +233,7 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
     let joint_series: Vec<(String, Vec<(f64, f64)>)> =
         q_series.into_iter().enumerate().map(|(j, s)| (format!("q {}", JOINT_NAMES[j]), s)).collect();
     line_plot(&out.join("joints_rf_rm.png"), "joint angles of RF and RM (rad)", "t (s)", &joint_series).map_err(anyhow::Error::msg)?;
-    if matches!(play_env, PlayEnv::Sim { .. }) {
+    if matches!(play_env, PlayEnv::Sim(_)) {
         let series: Vec<(String, Vec<(f64, f64)>)> =
             clearance_series.into_iter().enumerate().map(|(leg, s)| (LEG_NAMES[leg].to_string(), s)).collect();
         line_plot(&out.join("foot_clearance.png"), "foot clearance above the ground under it (m)", "t (s)", &series)
@@ -242,7 +241,7 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
     }
     if !args.no_replay {
         let ground = |x: f32, y: f32| match &play_env {
-            PlayEnv::Sim { terrain, .. } => terrain.height_at_m(x, y),
+            PlayEnv::Sim(env) => env.terrain().height_at_m(x, y),
             PlayEnv::Other(_) => 0.0,
         };
         render_replay(&out.join("replay.gif"), &frames, &ground).map_err(anyhow::Error::msg)?;

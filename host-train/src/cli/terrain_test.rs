@@ -8,7 +8,7 @@
 use crate::algo::ppo::Ppo;
 use crate::cli::play::set_command;
 use crate::config::TrainConfig;
-use host_sim::terrain::{Terrain, TerrainConfig};
+use host_sim::terrain::TerrainConfig;
 use host_sim::vec_env::VecEnv;
 use serde::Serialize;
 
@@ -73,7 +73,6 @@ pub fn terrain_test(cfg: &TrainConfig, ppo: &mut Ppo, per_kind: usize) -> anyhow
     sim.curriculum = false;
     sim.push.enabled = false;
     sim.episode_length_s = TERRAIN_TEST_DURATION_S + 1.0;
-    let terrain = Terrain::generate(&sim.terrain);
     let steps = (TERRAIN_TEST_DURATION_S / hexapod_core::timing::POLICY_DT_S).round() as usize;
     let mut env = host_sim::env::HexapodEnv::new(sim.clone())?;
     let mut tiles = Vec::new();
@@ -108,7 +107,7 @@ pub fn terrain_test(cfg: &TrainConfig, ppo: &mut Ppo, per_kind: usize) -> anyhow
             tiles.push(TileResult {
                 kind: format!("{kind:?}"),
                 level,
-                feature: terrain.feature(*kind, level),
+                feature: env.terrain().feature(*kind, level),
                 robots: robots.len(),
                 fall_rate: robots.iter().filter(|&&i| fell[i]).count() as f64 / count,
                 mean_distance_m: robots.iter().map(|&i| distance_m[i] as f64).sum::<f64>() / count,

@@ -3,7 +3,8 @@
 //!
 //! - [`bus::VirtualBus`]: in-memory CAN bus with frame loss, latency and bus-off;
 //! - [`drive::Drive`]: a CiA 402 drive emulator (NMT, SDO server, PDOs, power state
-//!   machine, heartbeat, EMCY) over a [`plant::JointPlant`];
+//!   machine, heartbeat, EMCY) over a [`plant::JointPlant`], its object dictionary from an
+//!   EDS ([`eds`]);
 //! - [`rig::DriveRig`]: two buses with the robot's 18 drives;
 //! - [`imu::ImuModel`]: IMU readings from a simulated state, with noise, bias, staleness;
 //! - [`rc::RcSource`]: a CRSF receiver stream, with link loss;
@@ -15,6 +16,7 @@ pub mod bus;
 pub mod candump;
 pub mod clock;
 pub mod drive;
+pub mod eds;
 pub mod harness;
 pub mod imu;
 pub mod plant;

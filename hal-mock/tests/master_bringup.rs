@@ -91,19 +91,27 @@ fn configures_and_enables_all_drives_through_frames() {
     for j in 0..NUM_JOINTS {
         assert_eq!(b.master.node(j).phase, NodePhase::Operational, "joint {j}");
         let d = &b.rig.drives[j];
-        assert_eq!(d.objects.mode, 8);
-        assert_eq!(d.objects.rpdo_map[0].active(), &[0x6040_0010, 0x607A_0020]);
-        assert_eq!(d.objects.producer_heartbeat_ms, 100);
+        assert_eq!(d.objects.mode(), 8);
+        assert_eq!(d.objects.rpdo_map(0).active(), &[0x6040_0010, 0x607A_0020]);
+        assert_eq!(d.objects.producer_heartbeat_ms(), 100);
+        // The speed limit in the profile's units, as the drive reads them from its own
+        // dictionary: 0x6080 in motor rpm, 0x607F in increments/s.
+        let sp_limit = d.setpoint_limits();
+        assert!(
+            (sp_limit.0 - VELOCITY_LIMIT_RAD_S[j]).abs() < 0.01 * VELOCITY_LIMIT_RAD_S[j],
+            "joint {j}: velocity limit {} rad/s",
+            sp_limit.0
+        );
         assert_eq!(
-            d.objects.position_limits,
+            d.objects.position_limits(),
             [
                 rad_to_increments(Q_MIN_RAD[j]),
                 rad_to_increments(Q_MAX_RAD[j])
             ]
         );
     }
-    // Configuration ran over SDO: 42 transfers x 2 frames x 18 drives at least.
-    assert!(b.rig.buses.iter().map(|x| x.stats.frames).sum::<u64>() > 42 * 2 * 18);
+    // Configuration ran over SDO: 47 transfers x 2 frames x 18 drives at least.
+    assert!(b.rig.buses.iter().map(|x| x.stats.frames).sum::<u64>() > 47 * 2 * 18);
 
     let mut cycles = 0;
     while !b.master.all_enabled() && cycles < 10 {
@@ -115,11 +123,10 @@ fn configures_and_enables_all_drives_through_frames() {
     for (j, d) in b.rig.drives.iter().enumerate() {
         assert_eq!(d.power_state(), PowerState::OperationEnabled);
         // The drive enforces the same limits the simulator's CSP law uses.
+        // 0x6080 is whole motor rpm, rounded down: within 1 rpm (0.012 rad/s at 9:1) below.
         let sp = d.setpoint().unwrap();
-        assert!(
-            (sp.vel_limit_rad_s - VELOCITY_LIMIT_RAD_S[j]).abs() < 1e-4,
-            "{sp:?}"
-        );
+        let below = VELOCITY_LIMIT_RAD_S[j] - sp.vel_limit_rad_s;
+        assert!((0.0..0.012).contains(&below), "{sp:?}");
         assert!(
             (sp.torque_limit_nm - TORQUE_LIMIT_NM[j]).abs() < 1e-3,
             "{sp:?}"
@@ -280,4 +287,34 @@ fn configuration_survives_frame_loss_by_retrying() {
         .count();
     // With 2 % loss and 2 retries per step, essentially every drive completes.
     assert!(configured >= NUM_JOINTS - 1, "{configured}");
+}
+
+/// Every step of the master's SDO script addresses an object of the drive's EDS with the
+/// right access, size and range (the EDS is written from the profile, not from the master).
+#[test]
+fn the_sdo_script_matches_the_drive_eds() {
+    use hal_mock::eds::Eds;
+    use hexapod_core::canopen::drive_config::{config_step, ConfigStep};
+    let eds = Eds::cia402_servo();
+    for j in 0..NUM_JOINTS {
+        let rated = (TORQUE_LIMIT_NM[j] * 500.0) as u32;
+        for step in (0..).map_while(|k| config_step(k, j, rated)) {
+            match step {
+                ConfigStep::Read(a) => {
+                    let e = eds
+                        .entry(a.index, a.sub)
+                        .unwrap_or_else(|| panic!("{a:?} not in the EDS"));
+                    assert!(e.access.readable(), "{a:?} {e:?}");
+                }
+                ConfigStep::Write(a, value, len) => {
+                    let e = eds
+                        .entry(a.index, a.sub)
+                        .unwrap_or_else(|| panic!("{a:?} not in the EDS"));
+                    assert!(e.access.writable(), "{a:?} {e:?}");
+                    assert_eq!(e.data_type.size(), len, "{a:?} {e:?}");
+                    assert!(e.in_range(value), "{a:?} = {value} {e:?}");
+                }
+            }
+        }
+    }
 }

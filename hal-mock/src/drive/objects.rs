@@ -1,9 +1,14 @@
-//! The emulated drive's object dictionary: storage, sizes, access rights and the checks a
-//! real CANopen device makes on SDO writes (read-only objects, lengths, value ranges,
-//! PDO mapping rules).
+//! The emulated drive's object dictionary: which objects exist, their data types, access
+//! rights, PDO mappability, limits and power-on values all come from the drive's EDS
+//! ([`crate::eds::Eds::cia402_servo`]); this file adds the checks a real CANopen device
+//! makes beyond the data sheet (CiA 301 PDO rules, supported modes of operation).
+
+use std::collections::BTreeMap;
 
 use hexapod_core::canopen::od::{self, ObjectAddress};
 use hexapod_core::canopen::sdo::abort;
+
+use crate::eds::Eds;
 
 /// Communication parameters of one PDO.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -37,220 +42,220 @@ impl PdoMap {
     }
 }
 
-/// Every object of the emulated drive that the SDO server exposes.
+/// Which side of the process data a PDO is on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum PdoKind {
+    Receive,
+    Transmit,
+}
+
+/// The object dictionary of one drive.
 #[derive(Clone, Debug)]
 pub struct Objects {
-    /// 0x1005.
-    pub sync_cob_id: u32,
-    /// 0x1006, us.
-    pub comm_cycle_us: u32,
-    /// 0x1016:01.
-    pub consumer_heartbeat: u32,
-    /// 0x1017, ms.
-    pub producer_heartbeat_ms: u16,
-    /// 0x1400..0x1403.
-    pub rpdo_comm: [PdoComm; 4],
-    /// 0x1600..0x1603.
-    pub rpdo_map: [PdoMap; 4],
-    /// 0x1800..0x1803.
-    pub tpdo_comm: [PdoComm; 4],
-    /// 0x1A00..0x1A03.
-    pub tpdo_map: [PdoMap; 4],
-    /// 0x6007.
-    pub abort_connection_option: i16,
-    /// 0x603F.
-    pub error_code: u16,
-    /// 0x6040.
-    pub controlword: u16,
-    /// 0x6041 (refreshed by the drive).
-    pub statusword: u16,
-    /// 0x605A.
-    pub quick_stop_option: i16,
-    /// 0x6060.
-    pub mode: i8,
-    /// 0x6064 (refreshed by the drive).
-    pub position: i32,
-    /// 0x606C (refreshed by the drive).
-    pub velocity: i32,
-    /// 0x6072, per mille of rated torque.
-    pub max_torque: u16,
-    /// 0x6076, mN m.
-    pub rated_torque_mnm: u32,
-    /// 0x6077 (refreshed by the drive).
-    pub torque: i16,
-    /// 0x607A.
-    pub target_position: i32,
-    /// 0x607D:01, 0x607D:02.
-    pub position_limits: [i32; 2],
-    /// 0x6080, increments/s.
-    pub max_motor_speed: u32,
-    /// 0x60C2:01, 0x60C2:02.
-    pub interpolation_period: (u8, i8),
+    eds: &'static Eds,
+    node_id: u8,
+    values: BTreeMap<(u16, u8), u32>,
+}
+
+/// An entry's default value, cut to its size.
+fn masked(e: &crate::eds::Entry, node_id: u8) -> u32 {
+    let raw = e.default_raw(node_id).unwrap_or(0);
+    match e.data_type.size() {
+        1 => raw & 0xFF,
+        2 => raw & 0xFFFF,
+        _ => raw,
+    }
+}
+
+fn key(a: ObjectAddress) -> (u16, u8) {
+    (a.index, a.sub)
 }
 
 impl Objects {
-    /// Power-on defaults: no PDO valid, profile position mode, generous limits.
+    /// Power-on values from the EDS; 0x6076 (motor rated torque) is this drive's rating.
     pub fn defaults(node_id: u8, rated_torque_mnm: u32) -> Self {
-        let n = node_id as u32;
-        let comm = |base: u16, transmission| PdoComm {
-            cob_id: od::PDO_INVALID | (base as u32 + n),
-            transmission,
+        let eds = Eds::cia402_servo();
+        let values = eds
+            .entries
+            .iter()
+            .map(|(&k, e)| (k, masked(e, node_id)))
+            .collect();
+        let mut o = Self {
+            eds,
+            node_id,
+            values,
         };
-        Self {
-            sync_cob_id: 0x80,
-            comm_cycle_us: 0,
-            consumer_heartbeat: 0,
-            producer_heartbeat_ms: 0,
-            rpdo_comm: [0x200, 0x300, 0x400, 0x500].map(|b| comm(b, 255)),
-            rpdo_map: [PdoMap::default(); 4],
-            // Vendor default: TPDO1 valid with the statusword, event-driven.
-            tpdo_comm: [
-                PdoComm {
-                    cob_id: 0x180 + n,
-                    transmission: 255,
-                },
-                comm(0x280, 255),
-                comm(0x380, 255),
-                comm(0x480, 255),
-            ],
-            tpdo_map: [
-                PdoMap {
-                    count: 1,
-                    entries: [od::STATUSWORD.mapping(16), 0, 0, 0],
-                },
-                PdoMap::default(),
-                PdoMap::default(),
-                PdoMap::default(),
-            ],
-            abort_connection_option: 1,
-            error_code: 0,
-            controlword: 0,
-            statusword: 0,
-            quick_stop_option: 2,
-            mode: 1,
-            position: 0,
-            velocity: 0,
-            max_torque: 3000,
-            rated_torque_mnm,
-            torque: 0,
-            target_position: 0,
-            position_limits: [i32::MIN, i32::MAX],
-            max_motor_speed: 3_000_000,
-            interpolation_period: (1, -3),
+        o.set_internal(od::MOTOR_RATED_TORQUE, rated_torque_mnm);
+        o
+    }
+
+    /// NMT reset communication: the communication area (0x1000-0x1FFF) back to its
+    /// power-on values.
+    pub fn reset_communication(&mut self) {
+        for (&(index, sub), e) in self.eds.entries.range((0x1000, 0)..=(0x1FFF, 0xFF)) {
+            self.values.insert((index, sub), masked(e, self.node_id));
         }
     }
 
-    /// Reads an object: (value as little-endian u32, size in bytes).
-    pub fn read(&self, a: ObjectAddress) -> Result<(u32, u8), u32> {
-        let v = match (a.index, a.sub) {
-            (0x1000, 0) => (od::DEVICE_TYPE_CIA402_SERVO, 4),
-            (0x1001, 0) => ((self.error_code != 0) as u32, 1),
-            (0x1005, 0) => (self.sync_cob_id, 4),
-            (0x1006, 0) => (self.comm_cycle_us, 4),
-            (0x1016, 0) => (1, 1),
-            (0x1016, 1) => (self.consumer_heartbeat, 4),
-            (0x1017, 0) => (self.producer_heartbeat_ms as u32, 2),
-            (0x1400..=0x1403, s) => comm_read(&self.rpdo_comm[a.index as usize - 0x1400], s)?,
-            (0x1800..=0x1803, s) => comm_read(&self.tpdo_comm[a.index as usize - 0x1800], s)?,
-            (0x1600..=0x1603, s) => map_read(&self.rpdo_map[a.index as usize - 0x1600], s)?,
-            (0x1A00..=0x1A03, s) => map_read(&self.tpdo_map[a.index as usize - 0x1A00], s)?,
-            (0x6007, 0) => (self.abort_connection_option as u16 as u32, 2),
-            (0x603F, 0) => (self.error_code as u32, 2),
-            (0x6040, 0) => (self.controlword as u32, 2),
-            (0x6041, 0) => (self.statusword as u32, 2),
-            (0x605A, 0) => (self.quick_stop_option as u16 as u32, 2),
-            (0x6060, 0) | (0x6061, 0) => (self.mode as u8 as u32, 1),
-            (0x6064, 0) => (self.position as u32, 4),
-            (0x606C, 0) => (self.velocity as u32, 4),
-            (0x6072, 0) => (self.max_torque as u32, 2),
-            (0x6076, 0) => (self.rated_torque_mnm, 4),
-            (0x6077, 0) => (self.torque as u16 as u32, 2),
-            (0x607A, 0) => (self.target_position as u32, 4),
-            (0x607D, 0) => (2, 1),
-            (0x607D, s @ 1..=2) => (self.position_limits[s as usize - 1] as u32, 4),
-            (0x6080, 0) => (self.max_motor_speed, 4),
-            (0x60C2, 0) => (2, 1),
-            (0x60C2, 1) => (self.interpolation_period.0 as u32, 1),
-            (0x60C2, 2) => (self.interpolation_period.1 as u8 as u32, 1),
-            // Profile position (bit 0) and cyclic synchronous position (bit 7).
-            (0x6502, 0) => (od::SUPPORTS_CSP | 1, 4),
-            (0x1000..=0x1FFF | 0x6000..=0x6FFF, _) if self.index_exists(a.index) => {
-                return Err(abort::NO_SUBINDEX)
-            }
-            _ => return Err(abort::NO_OBJECT),
+    /// The raw value of an object (0 if it does not exist).
+    pub fn get(&self, a: ObjectAddress) -> u32 {
+        self.values.get(&key(a)).copied().unwrap_or(0)
+    }
+
+    /// The device updates one of its own objects (process inputs, error code); no checks.
+    pub fn set_internal(&mut self, a: ObjectAddress, value: u32) {
+        if let Some(v) = self.values.get_mut(&key(a)) {
+            *v = value;
+        }
+    }
+
+    /// 0x6040.
+    pub fn controlword(&self) -> u16 {
+        self.get(od::CONTROLWORD) as u16
+    }
+    /// 0x6060.
+    pub fn mode(&self) -> i8 {
+        self.get(od::MODES_OF_OPERATION) as u8 as i8
+    }
+    /// 0x605A.
+    pub fn quick_stop_option(&self) -> i16 {
+        self.get(od::QUICK_STOP_OPTION) as u16 as i16
+    }
+    /// 0x6007.
+    pub fn abort_connection_option(&self) -> i16 {
+        self.get(od::ABORT_CONNECTION_OPTION) as u16 as i16
+    }
+    /// 0x1017, ms.
+    pub fn producer_heartbeat_ms(&self) -> u16 {
+        self.get(od::PRODUCER_HEARTBEAT) as u16
+    }
+    /// 0x1016:01 (node id << 16 | time in ms).
+    pub fn consumer_heartbeat(&self) -> u32 {
+        self.get(od::CONSUMER_HEARTBEAT_1)
+    }
+    /// 0x1005.
+    pub fn sync_cob_id(&self) -> u32 {
+        self.get(od::SYNC_COB_ID)
+    }
+    /// 0x607D:01 and :02, position units.
+    pub fn position_limits(&self) -> [i32; 2] {
+        [
+            self.get(od::SOFTWARE_POSITION_LIMIT_MIN) as i32,
+            self.get(od::SOFTWARE_POSITION_LIMIT_MAX) as i32,
+        ]
+    }
+    /// 0x607A, position units.
+    pub fn target_position(&self) -> i32 {
+        self.get(od::TARGET_POSITION) as i32
+    }
+    /// 0x6072, per mille of rated torque.
+    pub fn max_torque(&self) -> u16 {
+        self.get(od::MAX_TORQUE) as u16
+    }
+    /// 0x6076, mN m.
+    pub fn rated_torque_mnm(&self) -> u32 {
+        self.get(od::MOTOR_RATED_TORQUE)
+    }
+
+    /// Communication parameters of RPDO `k` (0-based).
+    pub fn rpdo_comm(&self, k: usize) -> PdoComm {
+        self.comm(0x1400 + k as u16)
+    }
+    /// Communication parameters of TPDO `k` (0-based).
+    pub fn tpdo_comm(&self, k: usize) -> PdoComm {
+        self.comm(0x1800 + k as u16)
+    }
+    /// Mapping of RPDO `k` (0-based).
+    pub fn rpdo_map(&self, k: usize) -> PdoMap {
+        self.map(0x1600 + k as u16)
+    }
+    /// Mapping of TPDO `k` (0-based).
+    pub fn tpdo_map(&self, k: usize) -> PdoMap {
+        self.map(0x1A00 + k as u16)
+    }
+
+    fn comm(&self, index: u16) -> PdoComm {
+        PdoComm {
+            cob_id: self.get(ObjectAddress::new(index, 1)),
+            transmission: self.get(ObjectAddress::new(index, 2)) as u8,
+        }
+    }
+
+    fn map(&self, index: u16) -> PdoMap {
+        let mut m = PdoMap {
+            count: self.get(ObjectAddress::new(index, 0)) as u8,
+            entries: [0; 4],
         };
-        Ok(v)
+        for s in 0..4 {
+            m.entries[s] = self.get(ObjectAddress::new(index, s as u8 + 1));
+        }
+        m
     }
 
-    fn index_exists(&self, index: u16) -> bool {
-        matches!(
-            index,
-            0x1000 | 0x1001 | 0x1005 | 0x1006 | 0x1016 | 0x1017 | 0x1400..=0x1403
-                | 0x1600..=0x1603 | 0x1800..=0x1803 | 0x1A00..=0x1A03 | 0x6007 | 0x603F
-                | 0x6040 | 0x6041 | 0x605A | 0x6060 | 0x6061 | 0x6064 | 0x606C | 0x6072
-                | 0x6076 | 0x6077 | 0x607A | 0x607D | 0x6080 | 0x60C2 | 0x6502
-        )
+    /// Reads an object by SDO: (value as little-endian u32, size in bytes).
+    pub fn read(&self, a: ObjectAddress) -> Result<(u32, u8), u32> {
+        let Some(e) = self.eds.entry(a.index, a.sub) else {
+            return Err(if self.eds.has_index(a.index) {
+                abort::NO_SUBINDEX
+            } else {
+                abort::NO_OBJECT
+            });
+        };
+        if !e.access.readable() {
+            return Err(abort::UNSUPPORTED_ACCESS);
+        }
+        Ok((self.get(a), e.data_type.size()))
     }
 
-    /// Writes an object with the checks of a real device; `Err` is the SDO abort code.
+    /// Writes an object by SDO with the checks of a real device; `Err` is the abort code.
     pub fn write(&mut self, a: ObjectAddress, value: u32, len: u8) -> Result<(), u32> {
-        let (_, size) = self.read(a)?;
-        if is_read_only(a) {
+        let Some(e) = self.eds.entry(a.index, a.sub) else {
+            return Err(if self.eds.has_index(a.index) {
+                abort::NO_SUBINDEX
+            } else {
+                abort::NO_OBJECT
+            });
+        };
+        if !e.access.writable() {
             return Err(abort::READ_ONLY);
         }
-        if len != size {
+        if len != e.data_type.size() {
             return Err(abort::LENGTH_MISMATCH);
         }
-        match (a.index, a.sub) {
-            (0x1005, 0) => self.sync_cob_id = value,
-            (0x1006, 0) => self.comm_cycle_us = value,
-            (0x1016, 1) => self.consumer_heartbeat = value,
-            (0x1017, 0) => self.producer_heartbeat_ms = value as u16,
-            (0x1400..=0x1403, s) => {
-                comm_write(&mut self.rpdo_comm[a.index as usize - 0x1400], s, value)?
-            }
-            (0x1800..=0x1803, s) => {
-                comm_write(&mut self.tpdo_comm[a.index as usize - 0x1800], s, value)?
-            }
-            (0x1600..=0x1603, s) => {
-                let i = a.index as usize - 0x1600;
-                map_write(
-                    &mut self.rpdo_map[i],
-                    self.rpdo_comm[i].valid(),
-                    s,
-                    value,
-                    rpdo_mappable,
-                )?
-            }
-            (0x1A00..=0x1A03, s) => {
-                let i = a.index as usize - 0x1A00;
-                map_write(
-                    &mut self.tpdo_map[i],
-                    self.tpdo_comm[i].valid(),
-                    s,
-                    value,
-                    tpdo_mappable,
-                )?
-            }
-            (0x6007, 0) => self.abort_connection_option = value as u16 as i16,
-            (0x6040, 0) => self.controlword = value as u16,
-            (0x605A, 0) => self.quick_stop_option = value as u16 as i16,
-            (0x6060, 0) => {
+        let size_bits = 8 * e.data_type.size() as u32;
+        let value = if size_bits < 32 {
+            value & ((1u32 << size_bits) - 1)
+        } else {
+            value
+        };
+        if !e.in_range(value) {
+            return Err(abort::VALUE_RANGE);
+        }
+        match a.index {
+            0x1400..=0x1403 | 0x1800..=0x1803 => self.comm_write(a, value)?,
+            0x1600..=0x1603 => self.map_write(a, value, PdoKind::Receive)?,
+            0x1A00..=0x1A03 => self.map_write(a, value, PdoKind::Transmit)?,
+            _ if a == od::MODES_OF_OPERATION => {
                 let mode = value as u8 as i8;
-                if mode != od::MODE_CSP && mode != 1 {
+                let supported = self.get(od::SUPPORTED_DRIVE_MODES);
+                if !(1..=32).contains(&mode) || supported & (1 << (mode - 1)) == 0 {
                     return Err(abort::VALUE_RANGE);
                 }
-                self.mode = mode;
             }
-            (0x6072, 0) => self.max_torque = value as u16,
-            (0x607A, 0) => self.target_position = value as i32,
-            (0x607D, s) => self.position_limits[s as usize - 1] = value as i32,
-            (0x6080, 0) => self.max_motor_speed = value,
-            (0x60C2, 1) => self.interpolation_period.0 = value as u8,
-            (0x60C2, 2) => self.interpolation_period.1 = value as u8 as i8,
-            _ => return Err(abort::UNSUPPORTED_ACCESS),
+            _ => {}
         }
+        self.values.insert(key(a), value);
         Ok(())
+    }
+
+    /// An RPDO writes a mapped object (mappability was checked when it was mapped).
+    pub fn write_mapped(&mut self, entry: u32, value: u32) {
+        let (a, bits) = ObjectAddress::from_mapping(entry);
+        if let Some(e) = self.eds.entry(a.index, a.sub) {
+            if e.rpdo_mappable() && bits as u32 == 8 * e.data_type.size() as u32 {
+                self.values.insert(key(a), value);
+            }
+        }
     }
 
     /// The value of a mappable object, as the low `bits` of a u64.
@@ -259,124 +264,72 @@ impl Objects {
         let (v, size) = self.read(a).ok()?;
         (size * 8 == bits).then_some((v as u64, bits))
     }
-}
 
-fn is_read_only(a: ObjectAddress) -> bool {
-    matches!(
-        (a.index, a.sub),
-        (0x1000, _)
-            | (0x1001, _)
-            | (0x1016, 0)
-            | (0x603F, _)
-            | (0x6041, _)
-            | (0x6061, _)
-            | (0x6064, _)
-            | (0x606C, _)
-            | (0x6076, _)
-            | (0x6077, _)
-            | (0x607D, 0)
-            | (0x60C2, 0)
-            | (0x6502, _)
-    ) || (matches!(a.index, 0x1400..=0x1403 | 0x1800..=0x1803) && a.sub == 0)
-}
-
-fn comm_read(c: &PdoComm, sub: u8) -> Result<(u32, u8), u32> {
-    match sub {
-        0 => Ok((2, 1)),
-        1 => Ok((c.cob_id, 4)),
-        2 => Ok((c.transmission as u32, 1)),
-        _ => Err(abort::NO_SUBINDEX),
-    }
-}
-
-fn comm_write(c: &mut PdoComm, sub: u8, value: u32) -> Result<(), u32> {
-    match sub {
-        1 => {
-            // CiA 301: the COB-ID may change only while the PDO is invalid.
-            let changes_id = (value & 0x7FF) != (c.cob_id & 0x7FF);
-            if c.valid() && value & od::PDO_INVALID == 0 && changes_id {
-                return Err(abort::DEVICE_STATE);
+    fn comm_write(&mut self, a: ObjectAddress, value: u32) -> Result<(), u32> {
+        let c = self.comm(a.index);
+        match a.sub {
+            1 => {
+                // CiA 301: the COB-ID may change only while the PDO is invalid.
+                let changes_id = (value & 0x7FF) != (c.cob_id & 0x7FF);
+                if c.valid() && value & od::PDO_INVALID == 0 && changes_id {
+                    return Err(abort::DEVICE_STATE);
+                }
             }
-            c.cob_id = value;
+            2 => {
+                if (241..=253).contains(&(value as u8)) {
+                    return Err(abort::VALUE_RANGE);
+                }
+            }
+            _ => {}
         }
-        2 => {
-            let t = value as u8;
-            if (241..=253).contains(&t) {
-                return Err(abort::VALUE_RANGE);
-            }
-            c.transmission = t;
+        Ok(())
+    }
+
+    fn mappable(&self, entry: u32, kind: PdoKind) -> bool {
+        let (a, bits) = ObjectAddress::from_mapping(entry);
+        self.eds.entry(a.index, a.sub).is_some_and(|e| {
+            let side = match kind {
+                PdoKind::Receive => e.rpdo_mappable(),
+                PdoKind::Transmit => e.tpdo_mappable(),
+            };
+            side && bits as u32 == 8 * e.data_type.size() as u32
+        })
+    }
+
+    fn map_write(&mut self, a: ObjectAddress, value: u32, kind: PdoKind) -> Result<(), u32> {
+        let comm_index = match kind {
+            PdoKind::Receive => a.index - 0x1600 + 0x1400,
+            PdoKind::Transmit => a.index - 0x1A00 + 0x1800,
+        };
+        if self.comm(comm_index).valid() {
+            return Err(abort::DEVICE_STATE);
         }
-        _ => return Err(abort::NO_SUBINDEX),
-    }
-    Ok(())
-}
-
-fn map_read(m: &PdoMap, sub: u8) -> Result<(u32, u8), u32> {
-    match sub {
-        0 => Ok((m.count as u32, 1)),
-        1..=4 => Ok((m.entries[sub as usize - 1], 4)),
-        _ => Err(abort::NO_SUBINDEX),
-    }
-}
-
-fn map_write(
-    m: &mut PdoMap,
-    pdo_valid: bool,
-    sub: u8,
-    value: u32,
-    mappable: fn(ObjectAddress, u8) -> bool,
-) -> Result<(), u32> {
-    if pdo_valid {
-        return Err(abort::DEVICE_STATE);
-    }
-    match sub {
-        0 => {
-            let count = value as u8;
-            if count > 4 {
-                return Err(abort::VALUE_RANGE);
+        let m = self.map(a.index);
+        match a.sub {
+            0 => {
+                let count = value as u8;
+                let mut bits = 0u32;
+                for &e in &m.entries[..count.min(4) as usize] {
+                    if !self.mappable(e, kind) {
+                        return Err(abort::NOT_MAPPABLE);
+                    }
+                    bits += e & 0xFF;
+                }
+                if bits > 64 {
+                    return Err(abort::PDO_TOO_LONG);
+                }
             }
-            let mut bits = 0u32;
-            for &e in &m.entries[..count as usize] {
-                let (a, b) = ObjectAddress::from_mapping(e);
-                if !mappable(a, b) {
+            _ => {
+                if m.count != 0 {
+                    return Err(abort::DEVICE_STATE);
+                }
+                if !self.mappable(value, kind) {
                     return Err(abort::NOT_MAPPABLE);
                 }
-                bits += b as u32;
             }
-            if bits > 64 {
-                return Err(abort::PDO_TOO_LONG);
-            }
-            m.count = count;
         }
-        1..=4 => {
-            if m.count != 0 {
-                return Err(abort::DEVICE_STATE);
-            }
-            let (a, b) = ObjectAddress::from_mapping(value);
-            if !mappable(a, b) {
-                return Err(abort::NOT_MAPPABLE);
-            }
-            m.entries[sub as usize - 1] = value;
-        }
-        _ => return Err(abort::NO_SUBINDEX),
+        Ok(())
     }
-    Ok(())
-}
-
-fn rpdo_mappable(a: ObjectAddress, bits: u8) -> bool {
-    a == od::CONTROLWORD && bits == 16 || a == od::TARGET_POSITION && bits == 32
-}
-
-fn tpdo_mappable(a: ObjectAddress, bits: u8) -> bool {
-    matches!(
-        (a.index, a.sub, bits),
-        (0x6041, 0, 16)
-            | (0x6064, 0, 32)
-            | (0x606C, 0, 32)
-            | (0x6077, 0, 16)
-            | (0x6061, 0, 8)
-            | (0x603F, 0, 16)
-    )
 }
 
 #[cfg(test)]
@@ -401,6 +354,11 @@ mod tests {
             Err(abort::VALUE_RANGE)
         );
         assert_eq!(o.write(od::MODES_OF_OPERATION, 8, 1), Ok(()));
+        // Outside the EDS's limits (0x6007: 0..=3).
+        assert_eq!(
+            o.write(od::ABORT_CONNECTION_OPTION, 9, 2),
+            Err(abort::VALUE_RANGE)
+        );
         // TPDO1 is valid by default: its mapping is locked.
         assert_eq!(o.write(od::tpdo_map(0, 0), 0, 1), Err(abort::DEVICE_STATE));
         o.write(od::tpdo_comm(0, 1), od::PDO_INVALID | 0x183, 4)
@@ -415,6 +373,20 @@ mod tests {
         o.write(od::tpdo_map(0, 3), 0x6064_0020, 4).unwrap();
         assert_eq!(o.write(od::tpdo_map(0, 0), 3, 1), Err(abort::PDO_TOO_LONG));
         o.write(od::tpdo_map(0, 0), 2, 1).unwrap();
-        assert_eq!(o.tpdo_map[0].active(), &[0x6064_0020, 0x606C_0020]);
+        assert_eq!(o.tpdo_map(0).active(), &[0x6064_0020, 0x606C_0020]);
+        // The statusword is not an RPDO object.
+        assert!(!o.mappable(0x6041_0010, PdoKind::Receive));
+        assert!(o.mappable(0x607A_0020, PdoKind::Receive));
+    }
+
+    #[test]
+    fn reset_communication_keeps_the_profile_area() {
+        let mut o = Objects::defaults(3, 22_500);
+        o.write(od::PRODUCER_HEARTBEAT, 100, 2).unwrap();
+        o.write(od::MODES_OF_OPERATION, 8, 1).unwrap();
+        o.reset_communication();
+        assert_eq!(o.producer_heartbeat_ms(), 0);
+        assert_eq!(o.mode(), 8);
+        assert_eq!(o.rated_torque_mnm(), 22_500);
     }
 }

@@ -1,19 +1,24 @@
 //! The SDO script that configures one drive for cyclic synchronous position control.
 //!
 //! Run in NMT pre-operational, one expedited transfer at a time:
-//! 1. identify: device type (CiA 402 servo), supported modes (CSP), rated torque;
+//! 1. identify: device type (CiA 402, servo drive), supported modes (CSP), rated torque,
+//!    encoder resolution and gear ratio (the units [`super::units`] assumes);
 //! 2. supervision: producer heartbeat, consumer heartbeat of the master, quick stop on
 //!    communication loss (0x6007) and "stay in quick stop, holding" (0x605A);
 //! 3. mode: CSP (0x6060 = 8), interpolation period = the policy period (0x60C2);
-//! 4. limits: max motor speed = the joint's velocity limit (the simulator's CSP law uses the
-//!    same limit), max torque = the joint's torque limit, software position limits;
+//! 4. limits: max profile velocity (0x607F, increments/s) and max motor speed (0x6080,
+//!    motor rpm) = the joint's velocity limit (the simulator's CSP law uses the same
+//!    limit), max torque = the joint's torque limit, software position limits;
 //! 5. SYNC COB-ID and cycle period;
 //! 6. PDOs, the CiA 301 way: invalidate, clear the mapping count, write entries, set the
 //!    count, set the transmission type, validate. Unused PDOs are invalidated.
 
 use super::od::{self, ObjectAddress};
 use super::pdo::{RPDO1_MAPPING, TPDO1_MAPPING, TPDO2_MAPPING};
-use super::units::{rad_s_to_velocity_units, rad_to_increments, torque_nm_to_permille};
+use super::units::{
+    rad_s_to_motor_rpm, rad_s_to_velocity_units, rad_to_increments, torque_nm_to_permille,
+    GEAR_RATIO, INCREMENTS_PER_REV,
+};
 use super::{cob, MASTER_NODE_ID};
 use crate::robot::{can_node_id, Q_MAX_RAD, Q_MIN_RAD, TORQUE_LIMIT_NM, VELOCITY_LIMIT_RAD_S};
 use crate::timing::POLICY_RATE_HZ;
@@ -46,6 +51,13 @@ pub enum IdentifyError {
     NoCspMode,
     /// Rated torque is zero.
     NoRatedTorque,
+    /// Encoder resolution or gear ratio differ from what [`super::units`] assumes.
+    Units {
+        /// Object read.
+        address: ObjectAddress,
+        /// Its value.
+        value: u32,
+    },
 }
 
 /// One PDO the script maps.
@@ -83,7 +95,7 @@ const PDO_PLANS: [PdoPlan; 3] = [
 ];
 
 /// Steps before the PDO section.
-const FIXED_STEPS: usize = 16;
+const FIXED_STEPS: usize = 21;
 /// Steps to map one PDO with two entries.
 const PDO_STEPS: usize = 7;
 /// PDOs invalidated at the end: TPDO3, TPDO4, RPDO2..4.
@@ -100,47 +112,56 @@ pub fn config_step(k: usize, joint: usize, rated_torque_mnm: u32) -> Option<Conf
         0 => Read(od::DEVICE_TYPE),
         1 => Read(od::SUPPORTED_DRIVE_MODES),
         2 => Read(od::MOTOR_RATED_TORQUE),
-        3 => Write(od::PRODUCER_HEARTBEAT, HEARTBEAT_PRODUCER_MS as u32, 2),
-        4 => Write(
+        3 => Read(od::ENCODER_INCREMENTS),
+        4 => Read(od::ENCODER_MOTOR_REVOLUTIONS),
+        5 => Read(od::GEAR_MOTOR_REVOLUTIONS),
+        6 => Read(od::GEAR_SHAFT_REVOLUTIONS),
+        7 => Write(od::PRODUCER_HEARTBEAT, HEARTBEAT_PRODUCER_MS as u32, 2),
+        8 => Write(
             od::CONSUMER_HEARTBEAT_1,
             (MASTER_NODE_ID as u32) << 16 | MASTER_HEARTBEAT_TIMEOUT_MS as u32,
             4,
         ),
-        5 => Write(
+        9 => Write(
             od::ABORT_CONNECTION_OPTION,
             od::ABORT_CONNECTION_QUICK_STOP as u16 as u32,
             2,
         ),
-        6 => Write(
+        10 => Write(
             od::QUICK_STOP_OPTION,
             od::QUICK_STOP_STAY_ACTIVE as u16 as u32,
             2,
         ),
-        7 => Write(od::MODES_OF_OPERATION, od::MODE_CSP as u8 as u32, 1),
-        8 => Write(od::INTERPOLATION_PERIOD_VALUE, SYNC_PERIOD_US / 1000, 1),
-        9 => Write(od::INTERPOLATION_PERIOD_INDEX, -3i8 as u8 as u32, 1),
-        10 => Write(
-            od::MAX_MOTOR_SPEED,
-            rad_s_to_velocity_units(VELOCITY_LIMIT_RAD_S[joint]) as u32,
+        11 => Write(od::MODES_OF_OPERATION, od::MODE_CSP as u8 as u32, 1),
+        12 => Write(od::INTERPOLATION_PERIOD_VALUE, SYNC_PERIOD_US / 1000, 1),
+        13 => Write(od::INTERPOLATION_PERIOD_INDEX, -3i8 as u8 as u32, 1),
+        14 => Write(
+            od::MAX_PROFILE_VELOCITY,
+            rad_s_to_velocity_units(VELOCITY_LIMIT_RAD_S[joint]).max(0) as u32,
             4,
         ),
-        11 => Write(
+        15 => Write(
+            od::MAX_MOTOR_SPEED,
+            rad_s_to_motor_rpm(VELOCITY_LIMIT_RAD_S[joint]),
+            4,
+        ),
+        16 => Write(
             od::MAX_TORQUE,
             torque_limit.clamp(0, u16::MAX as i32) as u32,
             2,
         ),
-        12 => Write(
+        17 => Write(
             od::SOFTWARE_POSITION_LIMIT_MIN,
             rad_to_increments(Q_MIN_RAD[joint]) as u32,
             4,
         ),
-        13 => Write(
+        18 => Write(
             od::SOFTWARE_POSITION_LIMIT_MAX,
             rad_to_increments(Q_MAX_RAD[joint]) as u32,
             4,
         ),
-        14 => Write(od::SYNC_COB_ID, cob::SYNC as u32, 4),
-        15 => Write(od::COMM_CYCLE_PERIOD, SYNC_PERIOD_US, 4),
+        19 => Write(od::SYNC_COB_ID, cob::SYNC as u32, 4),
+        20 => Write(od::COMM_CYCLE_PERIOD, SYNC_PERIOD_US, 4),
         k if k < FIXED_STEPS + 3 * PDO_STEPS => {
             let plan = &PDO_PLANS[(k - FIXED_STEPS) / PDO_STEPS];
             let comm = |sub| ObjectAddress::new(plan.comm_index, sub);
@@ -178,8 +199,23 @@ pub fn config_step(k: usize, joint: usize, rated_torque_mnm: u32) -> Option<Conf
 
 /// Checks a value read in the identification steps.
 pub fn check_read(address: ObjectAddress, value: u32) -> Result<(), IdentifyError> {
-    if address == od::DEVICE_TYPE && value & 0xFFFF != od::DEVICE_TYPE_CIA402_SERVO & 0xFFFF {
+    // Device profile 402 and, in the additional information, the type "servo drive".
+    if address == od::DEVICE_TYPE
+        && (value & 0xFFFF != od::DEVICE_PROFILE_CIA402
+            || (value >> 16) & 0xFF != od::DEVICE_TYPE_SERVO)
+    {
         return Err(IdentifyError::NotAServoDrive(value));
+    }
+    let expected = match address {
+        a if a == od::ENCODER_INCREMENTS => Some(INCREMENTS_PER_REV),
+        a if a == od::ENCODER_MOTOR_REVOLUTIONS || a == od::GEAR_MOTOR_REVOLUTIONS => {
+            Some(GEAR_RATIO)
+        }
+        a if a == od::GEAR_SHAFT_REVOLUTIONS => Some(1),
+        _ => None,
+    };
+    if expected.is_some_and(|e| e != value) {
+        return Err(IdentifyError::Units { address, value });
     }
     if address == od::SUPPORTED_DRIVE_MODES && value & od::SUPPORTS_CSP == 0 {
         return Err(IdentifyError::NoCspMode);
@@ -210,14 +246,35 @@ mod tests {
         assert!(steps.contains(&ConfigStep::Write(od::INTERPOLATION_PERIOD_VALUE, 20, 1)));
         // Thigh of leg 1: 45 N m of 22.5 N m rated.
         assert!(steps.contains(&ConfigStep::Write(od::MAX_TORQUE, 2000, 2)));
+        // 12 rad/s: 1,001,316 increments/s (0x607F) and 1031 motor rpm at 9:1 (0x6080).
+        assert!(steps.contains(&ConfigStep::Write(od::MAX_PROFILE_VELOCITY, 1_001_316, 4)));
+        assert!(steps.contains(&ConfigStep::Write(od::MAX_MOTOR_SPEED, 1031, 4)));
     }
 
     #[test]
     fn identification_rejects_other_devices() {
         assert_eq!(check_read(od::DEVICE_TYPE, 0x0002_0192), Ok(()));
+        // Mode bits (24-31) are manufacturer-specific.
+        assert_eq!(check_read(od::DEVICE_TYPE, 0x0A02_0192), Ok(()));
         assert_eq!(
             check_read(od::DEVICE_TYPE, 0x191),
             Err(IdentifyError::NotAServoDrive(0x191))
+        );
+        // Profile 402, but a stepper motor drive (0x03) or a frequency converter (0x01).
+        assert_eq!(
+            check_read(od::DEVICE_TYPE, 0x0003_0192),
+            Err(IdentifyError::NotAServoDrive(0x0003_0192))
+        );
+        assert_eq!(
+            check_read(od::DEVICE_TYPE, 0x0001_0192),
+            Err(IdentifyError::NotAServoDrive(0x0001_0192))
+        );
+        assert_eq!(
+            check_read(od::GEAR_MOTOR_REVOLUTIONS, 10),
+            Err(IdentifyError::Units {
+                address: od::GEAR_MOTOR_REVOLUTIONS,
+                value: 10
+            })
         );
         assert_eq!(
             check_read(od::SUPPORTED_DRIVE_MODES, 0x05),

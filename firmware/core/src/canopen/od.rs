@@ -30,10 +30,16 @@ impl ObjectAddress {
     }
 }
 
-/// Device type (u32, ro): 0x0002_0192 for a CiA 402 servo drive.
+/// Device type (u32, ro): bits 0-15 the device profile (402), bits 16-23 the type
+/// (CiA 402: 0x01 frequency converter, 0x02 servo drive, 0x03 stepper motor, ...), bits
+/// 24-31 manufacturer-specific mode bits.
 pub const DEVICE_TYPE: ObjectAddress = ObjectAddress::new(0x1000, 0);
-/// Device type value of a CiA 402 servo drive.
+/// Device type value of a CiA 402 servo drive (no mode bits).
 pub const DEVICE_TYPE_CIA402_SERVO: u32 = 0x0002_0192;
+/// Device profile number of CiA 402 (bits 0-15 of 0x1000).
+pub const DEVICE_PROFILE_CIA402: u32 = 402;
+/// Type field (bits 16-23 of 0x1000) of a CiA 402 servo drive.
+pub const DEVICE_TYPE_SERVO: u32 = 0x02;
 /// COB-ID SYNC (u32).
 pub const SYNC_COB_ID: ObjectAddress = ObjectAddress::new(0x1005, 0);
 /// Communication cycle period (u32, us).
@@ -106,8 +112,19 @@ pub const TARGET_POSITION: ObjectAddress = ObjectAddress::new(0x607A, 0);
 pub const SOFTWARE_POSITION_LIMIT_MIN: ObjectAddress = ObjectAddress::new(0x607D, 1);
 /// Software position limit, maximum (i32, increments).
 pub const SOFTWARE_POSITION_LIMIT_MAX: ObjectAddress = ObjectAddress::new(0x607D, 2);
-/// Max motor speed (u32, increments/s: the drive's velocity unit).
+/// Max profile velocity (u32, velocity units = increments/s); in CSP the drive's speed
+/// limit together with [`MAX_MOTOR_SPEED`].
+pub const MAX_PROFILE_VELOCITY: ObjectAddress = ObjectAddress::new(0x607F, 0);
+/// Max motor speed (u32, rpm of the motor shaft, CiA 402).
 pub const MAX_MOTOR_SPEED: ObjectAddress = ObjectAddress::new(0x6080, 0);
+/// Position encoder resolution, encoder increments (u32).
+pub const ENCODER_INCREMENTS: ObjectAddress = ObjectAddress::new(0x608F, 1);
+/// Position encoder resolution, motor revolutions (u32).
+pub const ENCODER_MOTOR_REVOLUTIONS: ObjectAddress = ObjectAddress::new(0x608F, 2);
+/// Gear ratio, motor revolutions (u32).
+pub const GEAR_MOTOR_REVOLUTIONS: ObjectAddress = ObjectAddress::new(0x6091, 1);
+/// Gear ratio, shaft revolutions (u32).
+pub const GEAR_SHAFT_REVOLUTIONS: ObjectAddress = ObjectAddress::new(0x6091, 2);
 /// Interpolation time period value (u8).
 pub const INTERPOLATION_PERIOD_VALUE: ObjectAddress = ObjectAddress::new(0x60C2, 1);
 /// Interpolation time period index (i8, power of ten of seconds: -3 = ms).

@@ -2,7 +2,11 @@
 //! per mille of the motor's rated torque (CiA 402 0x6077/0x6072 with 0x6076 in mN m).
 //!
 //! Every drive has an absolute 19-bit encoder on the joint output, homed so that 0
-//! increments is the joint's zero angle (the leg stretched, hip straight).
+//! increments is the joint's zero angle (the leg stretched, hip straight), and a 9:1 gear
+//! between motor and joint. The drive reports both (0x608F encoder resolution: 2^19
+//! increments per 9 motor revolutions; 0x6091 gear ratio 9:1) and the master checks them.
+//! The velocity unit is increments/s (0x606C, 0x607F); 0x6080 (max motor speed) is in rpm
+//! of the motor, as CiA 402 defines it.
 
 use core::f32::consts::TAU;
 
@@ -10,6 +14,15 @@ use core::f32::consts::TAU;
 pub const INCREMENTS_PER_REV: u32 = 1 << 19;
 /// Encoder increments per radian.
 pub const INCREMENTS_PER_RAD: f32 = INCREMENTS_PER_REV as f32 / TAU;
+
+/// Motor revolutions per joint revolution.
+pub const GEAR_RATIO: u32 = 9;
+
+/// Joint speed to the motor's speed in whole rpm (CiA 402 0x6080), rounded down so that
+/// the limit is never above the joint's; saturating, negative and NaN give 0.
+pub fn rad_s_to_motor_rpm(rad_s: f32) -> u32 {
+    libm::floorf(rad_s * GEAR_RATIO as f32 * 60.0 / TAU) as u32
+}
 
 /// Joint angle to position increments (rounded, saturating; NaN gives 0).
 pub fn rad_to_increments(rad: f32) -> i32 {
@@ -66,6 +79,13 @@ mod tests {
         assert_eq!(torque_nm_to_permille(45.0, 22_500), 2000);
         assert!((permille_to_torque_nm(-1000, 22_500) + 22.5).abs() < 1e-4);
         assert_eq!(torque_nm_to_permille(1.0, 0), 0);
+    }
+
+    #[test]
+    fn max_motor_speed_is_in_motor_rpm() {
+        // 12 rad/s at the joint = 114.6 rpm at the joint = 1031 rpm at the motor (9:1).
+        assert_eq!(rad_s_to_motor_rpm(12.0), 1031);
+        assert_eq!(rad_s_to_motor_rpm(-1.0), 0);
     }
 
     #[test]

@@ -12,7 +12,8 @@
 //!
 //! | fault | detected by | reaction while the robot stands or walks |
 //! |---|---|---|
-//! | drive EMCY / drive fault / lost heartbeat / lost feedback | master | `SafeSitDown`: the other drives lower the body slowly to `Q_SIT_RAD`, then torque off |
+//! | drive EMCY / drive fault | master (EMCY, statusword) | `SafeSitDown`: the other drives lower the body slowly to `Q_SIT_RAD`, then torque off |
+//! | lost drive: heartbeat (5 x 100 ms), feedback (10 cycles), NMT state | master | the drive: target frozen from the first cycle without its feedback, then controlword quick stop each cycle (it holds its joint, 0x605A = 6), once seated disable voltage (3 cycles) and NMT stop ([`crate::canopen::master::LostReaction`]); the robot: `SafeSitDown` on the others |
 //! | bus-off | CAN driver | `SafeHold`: the other bus's drives hold their targets (its legs keep the body up); sit down once the arm switch goes off |
 //! | IMU stale | IMU timestamps | `SafeSitDown` (joint-space sit-down needs no IMU) |
 //! | RC lost (failsafe) | CRSF receiver | `SafeSitDown` |

@@ -16,7 +16,9 @@
 
 use heapless::Deque;
 
-use super::cia402::{next_controlword, DriveRequest, PowerState};
+use super::cia402::{
+    next_controlword, DriveRequest, PowerState, CW_DISABLE_VOLTAGE, CW_QUICK_STOP,
+};
 use super::cob::{self, Cob};
 use super::drive_config::{
     check_read, config_step, ConfigStep, IdentifyError, HEARTBEAT_PRODUCER_MS,
@@ -96,6 +98,39 @@ impl NodeFault {
     pub fn link_alive(self) -> bool {
         matches!(self, Self::Emergency { .. } | Self::DriveFault)
     }
+
+    /// True when the master cannot see the drive (or its state) any more, while the drive
+    /// may still hear the master: it gets the lost-drive reaction ([`LostReaction`]).
+    pub fn drive_lost(self) -> bool {
+        matches!(
+            self,
+            Self::LostHeartbeat | Self::FeedbackLost | Self::UnexpectedNmtState
+        )
+    }
+}
+
+/// How many cycles a lost drive gets "disable voltage" before its NMT stop.
+pub const LOST_DISABLE_CYCLES: u8 = 3;
+
+/// What the master sends a drive it has lost (it cannot tell whether the drive hears it,
+/// so each step is sent blind, per cycle):
+/// 1. from the first cycle without its feedback: its last target, frozen;
+/// 2. once lost: controlword quick stop (0x0002) with the frozen target: the drive holds
+///    its joint in Quick stop active (0x605A = 6) while the others sit down;
+/// 3. once the supervisor turns torque off (seated): "disable voltage" (0x0000) for
+///    [`LOST_DISABLE_CYCLES`] cycles, then NMT stop of the node: PDOs off, and with
+///    0x6007 = quick stop a drive that missed the controlword stops by itself.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum LostReaction {
+    /// Not lost.
+    None,
+    /// Quick stop sent each cycle.
+    QuickStop,
+    /// Disable voltage sent, this many cycles so far.
+    Disabling(u8),
+    /// NMT stop sent: nothing more.
+    Stopped,
 }
 
 /// Configuration progress of a node.
@@ -148,6 +183,13 @@ pub struct NodeState {
     pub last_heartbeat_us: u64,
     /// Last controlword sent.
     pub controlword: u16,
+    /// Last target position sent, increments.
+    pub target_increments: i32,
+    /// Cycles in which the drive's target was frozen because its feedback was missing.
+    pub frozen_cycles: u32,
+    /// The reaction to a lost drive.
+    pub lost: LostReaction,
+    commanded: bool,
     sdo: SdoClient,
     got_tpdo1: bool,
     got_tpdo2: bool,
@@ -168,6 +210,10 @@ impl NodeState {
             rated_torque_mnm: 0,
             last_heartbeat_us: 0,
             controlword: 0,
+            target_increments: 0,
+            frozen_cycles: 0,
+            lost: LostReaction::None,
+            commanded: false,
             sdo: SdoClient::idle(),
             got_tpdo1: false,
             got_tpdo2: false,
@@ -671,6 +717,8 @@ impl Master {
     /// Sends one RPDO per reachable drive: the controlword that moves it toward
     /// `requests[j]` and the target position (clamped to the joint limits). Drives that
     /// are not yet enabled get their own position as target, so enabling never jumps.
+    /// A drive whose feedback of this cycle is missing keeps its last target and
+    /// controlword (frozen); a lost drive gets the [`LostReaction`].
     pub fn send_commands(
         &mut self,
         requests: &[DriveRequest; NUM_JOINTS],
@@ -678,7 +726,24 @@ impl Master {
     ) {
         for j in 0..NUM_JOINTS {
             let node = &mut self.nodes[j];
+            if node.phase != NodePhase::Operational {
+                continue;
+            }
+            if node.fault.is_some_and(NodeFault::drive_lost) {
+                self.react_to_lost(j, requests[j]);
+                continue;
+            }
             if !node.is_reachable() {
+                continue;
+            }
+            if node.awaiting_feedback {
+                // No feedback this cycle: whatever we would send is based on stale state.
+                // Repeat the last command (nothing if none was sent since configuration).
+                node.frozen_cycles = node.frozen_cycles.saturating_add(1);
+                if node.commanded {
+                    let (cw, target) = (node.controlword, node.target_increments);
+                    self.push_rpdo(j, cw, target);
+                }
                 continue;
             }
             let cw = next_controlword(node.power, requests[j], node.controlword);
@@ -691,13 +756,48 @@ impl Master {
             } else {
                 node.q_rad
             };
-            let rpdo = Rpdo1 {
-                controlword: cw,
-                target_position: units::rad_to_increments(target_rad),
-            };
-            let frame =
-                CanFrame::new_truncating(cob::RPDO_BASE[0] + can_node_id(j) as u16, &rpdo.encode());
-            self.push(can_bus(j), frame);
+            let target = units::rad_to_increments(target_rad);
+            self.push_rpdo(j, cw, target);
+        }
+    }
+
+    fn push_rpdo(&mut self, joint: usize, controlword: u16, target_increments: i32) {
+        let node = &mut self.nodes[joint];
+        node.controlword = controlword;
+        node.target_increments = target_increments;
+        node.commanded = true;
+        let rpdo = Rpdo1 {
+            controlword,
+            target_position: target_increments,
+        };
+        let frame =
+            CanFrame::new_truncating(cob::RPDO_BASE[0] + can_node_id(joint) as u16, &rpdo.encode());
+        self.push(can_bus(joint), frame);
+    }
+
+    /// One cycle of the lost-drive reaction ([`LostReaction`]).
+    fn react_to_lost(&mut self, joint: usize, request: DriveRequest) {
+        let node = &mut self.nodes[joint];
+        let torque_off = matches!(request, DriveRequest::Disable | DriveRequest::FaultReset);
+        let next = match (node.lost, torque_off) {
+            (LostReaction::Stopped, _) => return,
+            (LostReaction::None | LostReaction::QuickStop, false) => LostReaction::QuickStop,
+            (LostReaction::None | LostReaction::QuickStop, true) => LostReaction::Disabling(0),
+            (LostReaction::Disabling(n), _) if n + 1 >= LOST_DISABLE_CYCLES => {
+                LostReaction::Stopped
+            }
+            (LostReaction::Disabling(n), _) => LostReaction::Disabling(n + 1),
+        };
+        node.lost = next;
+        let target = node.target_increments;
+        match next {
+            LostReaction::QuickStop => self.push_rpdo(joint, CW_QUICK_STOP, target),
+            LostReaction::Disabling(_) => self.push_rpdo(joint, CW_DISABLE_VOLTAGE, target),
+            LostReaction::Stopped => {
+                let frame = NmtCommand::Stop.frame(can_node_id(joint));
+                self.push(can_bus(joint), frame);
+            }
+            LostReaction::None => {}
         }
     }
 }

@@ -68,6 +68,12 @@ impl VirtualBus {
         self.now_us = now_us;
     }
 
+    /// The controller's CAN peripheral is reset: frames waiting for it are gone (frames it
+    /// already put on the wire still reach the drives).
+    pub fn reset_controller_side(&mut self) {
+        self.to_controller.clear();
+    }
+
     /// Starts recording all traffic.
     pub fn record(&mut self) {
         self.log.get_or_insert_with(Vec::new);

@@ -8,6 +8,7 @@
 
 use hexapod_core::control::Policy;
 use hexapod_core::controller::{Controller, ControllerConfig};
+use hexapod_core::hal::BootInfo;
 use hexapod_core::supervisor::Command;
 use hexapod_core::timing::{PHYSICS_DT_S, POLICY_DT_S};
 
@@ -62,6 +63,10 @@ pub struct Harness<P: JointPlant> {
     pub delay_next_finish_us: u64,
     /// The last command of the controller.
     pub last_command: Option<Command>,
+    /// The controller's parameters (a restarted controller gets the same).
+    pub config: ControllerConfig,
+    /// The controller is held in reset: the drives, sensors and physics run on.
+    pub controller_down: bool,
 }
 
 impl<P: JointPlant> Harness<P> {
@@ -79,7 +84,31 @@ impl<P: JointPlant> Harness<P> {
             now_us: 0,
             delay_next_finish_us: 0,
             last_command: None,
+            config,
+            controller_down: false,
         }
+    }
+
+    /// A reset of the microcontroller (IWDG, HardFault): the controller is gone for
+    /// `down_us` while the drives keep running on their last commands, then a new
+    /// controller starts with `boot` (its reset flags) and no memory of the old one. The
+    /// CAN peripherals' queues are lost with the reset.
+    pub fn restart_controller(
+        &mut self,
+        down_us: u64,
+        boot: BootInfo,
+        physics: &mut impl FnMut(&mut P, f32),
+    ) {
+        self.controller_down = true;
+        for bus in &mut self.rig.buses {
+            bus.reset_controller_side();
+        }
+        let until = self.now_us + down_us;
+        self.idle_until(until, physics);
+        self.controller_down = false;
+        self.controller = Controller::new(self.config);
+        self.last_command = None;
+        self.controller.start_after_reset(self.now_us, boot);
     }
 
     /// One 1 ms tick: sensors, frames both ways, drives, physics.
@@ -99,16 +128,23 @@ impl<P: JointPlant> Harness<P> {
             b.lin_acc_world_m_s2,
         );
         self.rc.tick(now);
-        self.controller.service_imu(&mut self.imu);
-        self.controller.service_rc(&mut self.rc, now);
-        for bus in 0..2 {
-            self.controller
-                .service_bus(bus, &mut self.rig.buses[bus], now);
-        }
-        self.rig.step(now, &mut self.plant);
-        for bus in 0..2 {
-            self.controller
-                .service_bus(bus, &mut self.rig.buses[bus], now);
+        if self.controller_down {
+            for bus in &mut self.rig.buses {
+                bus.reset_controller_side();
+            }
+            self.rig.step(now, &mut self.plant);
+        } else {
+            self.controller.service_imu(&mut self.imu);
+            self.controller.service_rc(&mut self.rc, now);
+            for bus in 0..2 {
+                self.controller
+                    .service_bus(bus, &mut self.rig.buses[bus], now);
+            }
+            self.rig.step(now, &mut self.plant);
+            for bus in 0..2 {
+                self.controller
+                    .service_bus(bus, &mut self.rig.buses[bus], now);
+            }
         }
         self.now_us += TICK_US;
         if self.now_us.is_multiple_of(PHYSICS_US) {

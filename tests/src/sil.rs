@@ -84,6 +84,17 @@ impl Sil {
         done(self.mode())
     }
 
+    /// A reset of the controller (watchdog, HardFault) with the drives running on: the
+    /// controller is gone for `down_s`, then a new one starts with `reset_flags` (RCC_RSR).
+    pub fn restart_controller(&mut self, down_s: f32, reset_flags: u32) {
+        let down_us = (down_s * 1e6).round() as u64;
+        self.h.restart_controller(
+            down_us,
+            hexapod_core::hal::BootInfo { reset_flags },
+            &mut physics,
+        );
+    }
+
     /// Starts the controller and waits until the drives are configured (`Disabled`).
     pub fn boot(&mut self) -> Result<(), Mode> {
         self.h.start(&mut physics);

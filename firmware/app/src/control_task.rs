@@ -17,7 +17,7 @@ use embassy_time::{Duration, Instant, Ticker, Timer};
 use hexapod_core::canopen::master::NUM_BUSES;
 use hexapod_core::control::NnPolicy;
 use hexapod_core::controller::{Controller, ControllerConfig};
-use hexapod_core::hal::Clock;
+use hexapod_core::hal::{BootInfo, Clock};
 use hexapod_core::supervisor::Mode;
 use hexapod_core::timing::POLICY_RATE_HZ;
 
@@ -103,12 +103,20 @@ pub async fn control_task(
     mut io: ControlIo,
     mut policy: Policy,
     mut watchdog: IndependentWatchdog<'static, IWDG1>,
+    boot: BootInfo,
 ) {
     let config = ControllerConfig::default();
     let clock = UptimeClock;
     let mut controller = Controller::new(config);
-    controller.start(clock.now_us());
+    controller.start_after_reset(clock.now_us(), boot);
     let mut mode = controller.mode();
+    if boot.warm() {
+        warn!(
+            "control: started after a reset ({}, RCC_RSR {:#010x}): drives holding the body are adopted",
+            boot.cause(),
+            boot.reset_flags
+        );
+    }
     info!("control: started, {} Hz, mode {}", POLICY_RATE_HZ, mode);
 
     watchdog.unleash();

@@ -32,6 +32,7 @@ use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{bind_interrupts, dma, interrupt, pac};
 use embassy_time::Delay;
 use embedded_hal_bus::spi::ExclusiveDevice;
+use hexapod_core::hal::BootInfo;
 use hexapod_core::control::NnPolicy;
 use hexapod_core::nn::Kernel;
 use {defmt_rtt as _, panic_probe as _};
@@ -55,6 +56,13 @@ bind_interrupts!(struct Irqs {
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
     let mut core = cortex_m::Peripherals::take().expect("core peripherals taken once");
+    // Why we (re)started: the reset flags, read before anything else and then cleared, so
+    // that the next reset reports only its own cause. The controller adopts drives that
+    // hold the body whatever the cause; the flags go to the log.
+    let boot = BootInfo {
+        reset_flags: pac::RCC.rsr().read().0,
+    };
+    pac::RCC.rsr().modify(|w| w.set_rmvf(true));
     let board = Board::new(embassy_stm32::init(board::clock_config()));
     cache::enable(&mut core.SCB, &mut core.CPUID, &mut core.MPU);
     core.DCB.enable_trace();
@@ -112,5 +120,7 @@ async fn main(spawner: Spawner) {
         alive_led: Output::new(board.leds.alive, Level::Low, Speed::Low),
         fault_led: Output::new(board.leds.fault, Level::Low, Speed::Low),
     };
-    spawner.spawn(control_task::control_task(io, policy, watchdog).expect("control task spawns"));
+    spawner.spawn(
+        control_task::control_task(io, policy, watchdog, boot).expect("control task spawns"),
+    );
 }

@@ -33,7 +33,7 @@ use crate::attitude::{AttitudeConfig, AttitudeFilter};
 use crate::can_frame::CanFrame;
 use crate::canopen::master::{Master, NUM_BUSES};
 use crate::control::{ControlStep, Policy, Sensors};
-use crate::hal::{CanBus, CanTxError, Imu, ImuSample, RcInput};
+use crate::hal::{BootInfo, CanBus, CanTxError, Imu, ImuSample, RcInput};
 use crate::rc::receiver::{RcConfig, RcReceiver, RcState};
 use crate::robot::NUM_JOINTS;
 use crate::supervisor::{Command, Inputs, Mode, Supervisor, SupervisorConfig};
@@ -97,6 +97,7 @@ pub struct Controller {
     cycle_start_us: Option<u64>,
     overrun: bool,
     was_walking: bool,
+    boot: BootInfo,
     /// Loop counters.
     pub stats: LoopStats,
 }
@@ -115,14 +116,29 @@ impl Controller {
             cycle_start_us: None,
             overrun: false,
             was_walking: false,
+            boot: BootInfo { reset_flags: 0 },
             stats: LoopStats::default(),
         }
     }
 
-    /// Starts the drives (NMT reset, configuration) and leaves `Boot`.
+    /// Starts the drives (state probe, NMT reset, configuration) and leaves `Boot`.
     pub fn start(&mut self, now_us: u64) {
         self.master.start(now_us);
         self.supervisor.start();
+    }
+
+    /// [`Controller::start`] after a reset of the microcontroller, with what it reports
+    /// about the reset (kept for the logs: [`Controller::boot_info`]). The drives' state is
+    /// learnt before anything is commanded either way: a drive holding the body is adopted
+    /// whatever the flags say.
+    pub fn start_after_reset(&mut self, now_us: u64, boot: BootInfo) {
+        self.boot = boot;
+        self.start(now_us);
+    }
+
+    /// What the microcontroller reported about its last reset.
+    pub fn boot_info(&self) -> BootInfo {
+        self.boot
     }
 
     /// The supervisor's mode.
@@ -256,6 +272,7 @@ impl Controller {
             now_us,
             configuring: self.master.configuring(),
             drives_enabled: self.master.all_enabled(),
+            drives_adopted: self.master.any_adopted(),
             drive_fault: self.master.first_fault(),
             q_rad: &feedback.q_rad,
             imu_fresh,

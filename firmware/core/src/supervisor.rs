@@ -21,6 +21,8 @@
 //! | NaN / inf in observation or action | control step | `SafeSitDown` from the last finite targets |
 //! | deadline overrun | controller timing | `SafeSitDown` |
 //!
+//! | controller restart (IWDG, fault reset) with drives holding the body | master: statusword and position read by SDO (and the first TPDO1) before any controlword | drives in Operation enabled or Quick stop active adopted at their positions (quick stop left deliberately: target = actual position, then enable operation), then `SafeSitDown` from the measured joints (`Fault::Restarted`); the reset cause is kept ([`crate::hal::BootInfo`]) |
+//!
 //! `SafeSitDown` ends in `Faulted` (drives disabled). Faults while `Disabled` latch
 //! `Faulted` directly. Leaving `Faulted` needs the arm switch off, the cause gone and a
 //! recoverable fault (drive faults are cleared by a CiA 402 fault reset; lost heartbeat,
@@ -92,6 +94,9 @@ pub enum Fault {
     Overrun,
     /// The drives did not all reach Operation enabled in time.
     EnableTimeout,
+    /// The controller (re)started while drives held the body (a watchdog or fault reset
+    /// of the MCU): they were adopted at their positions and the robot sits down.
+    Restarted,
 }
 
 /// What the supervisor does about a fault while the robot is up.
@@ -195,6 +200,8 @@ pub struct Inputs<'a> {
     pub configuring: bool,
     /// Every drive is in Operation enabled.
     pub drives_enabled: bool,
+    /// Some drive had torque on when the controller started (it holds the body).
+    pub drives_adopted: bool,
     /// The first latched drive fault.
     pub drive_fault: Option<(usize, NodeFault)>,
     /// Measured joint positions, rad.
@@ -341,7 +348,18 @@ impl Supervisor {
         match self.mode {
             Mode::Boot => {}
             Mode::Configuring => {
-                if let Some(drive_fault) = i.drive_fault {
+                if i.drives_adopted && !i.configuring {
+                    // Drives hold the body after a restart: never disable them under load;
+                    // sit down slowly from where the joints are (on the drives that work).
+                    self.from_rad = *i.q_rad;
+                    self.targets_rad = *i.q_rad;
+                    self.mode = Mode::SafeSitDown {
+                        since_us: now,
+                        fault: Fault::Restarted,
+                    };
+                } else if i.drives_adopted {
+                    // Wait for every drive's state before acting, even on a drive fault.
+                } else if let Some(drive_fault) = i.drive_fault {
                     self.mode = Mode::Faulted {
                         fault: Fault::from_drive(drive_fault),
                     };

@@ -54,6 +54,7 @@ impl World {
             now_us: self.now_us,
             configuring: self.configuring,
             drives_enabled: self.enabled,
+            drives_adopted: false,
             drive_fault: self.drive_fault,
             q_rad: &q,
             imu_fresh: self.imu_fresh,

@@ -92,6 +92,7 @@ proptest! {
                     now_us,
                     configuring: now_us < 100_000,
                     drives_enabled: enabled,
+                    drives_adopted: false,
                     drive_fault: latched_fault,
                     q_rad: &q,
                     imu_fresh: e.imu_fresh,

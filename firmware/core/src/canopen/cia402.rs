@@ -121,7 +121,10 @@ pub fn next_controlword(state: PowerState, request: DriveRequest, previous: u16)
         DriveRequest::Enable => match state {
             S::SwitchOnDisabled | S::NotReadyToSwitchOn => CW_SHUTDOWN,
             S::ReadyToSwitchOn => CW_SWITCH_ON,
-            S::SwitchedOn | S::OperationEnabled | S::QuickStopActive => CW_ENABLE_OPERATION,
+            S::SwitchedOn | S::OperationEnabled => CW_ENABLE_OPERATION,
+            // Quick stop active is left only by a deliberate recovery (the master sets the
+            // target to the drive's position first, see `Master::send_commands`): keep it.
+            S::QuickStopActive => CW_QUICK_STOP,
             // A faulted drive is never re-enabled implicitly.
             S::Fault | S::FaultReactionActive => CW_DISABLE_VOLTAGE,
         },
@@ -184,6 +187,19 @@ mod tests {
             steps += 1;
         }
         assert_eq!(steps, 3);
+    }
+
+    #[test]
+    fn quick_stop_active_is_not_left_implicitly() {
+        assert_eq!(
+            next_controlword(PowerState::QuickStopActive, DriveRequest::Enable, 0x000F),
+            CW_QUICK_STOP
+        );
+        // Disabling from Quick stop active (transition 12) stays possible.
+        assert_eq!(
+            next_controlword(PowerState::QuickStopActive, DriveRequest::Disable, 0x0002),
+            CW_DISABLE_VOLTAGE
+        );
     }
 
     #[test]

@@ -1,7 +1,12 @@
 //! The CANopen master of the 18 joint drives on two buses.
 //!
 //! One synchronous state machine, time passed in (microseconds):
-//! - [`Master::start`] resets every node's communication (NMT 0x82) and waits for boot-up;
+//! - [`Master::start`] first learns each node's state without touching it: SDO uploads of
+//!   the statusword (0x6041) and the position (0x6064). A drive found in Operation enabled
+//!   or Quick stop active is holding the body (the controller was reset, the drives were
+//!   not): it is *adopted* ([`NodeState::adopted`]). Then each node's communication is
+//!   reset (NMT 0x82; with 0x6007 = quick stop an enabled drive holds in Quick stop
+//!   active meanwhile) and the master waits for its boot-up;
 //! - each booted node runs the [`drive_config`] SDO script, then gets NMT start;
 //! - [`Master::sync`] begins a control cycle (SYNC on both buses), the drives answer with
 //!   TPDO1/TPDO2, [`Master::feedback_complete`] tells when all arrived, and
@@ -17,7 +22,8 @@
 use heapless::Deque;
 
 use super::cia402::{
-    next_controlword, DriveRequest, PowerState, CW_DISABLE_VOLTAGE, CW_QUICK_STOP,
+    next_controlword, DriveRequest, PowerState, CW_DISABLE_VOLTAGE, CW_ENABLE_OPERATION,
+    CW_QUICK_STOP,
 };
 use super::cob::{self, Cob};
 use super::drive_config::{
@@ -50,6 +56,8 @@ pub const BOOT_TIMEOUT_US: u64 = 500_000;
 pub const BOOT_ATTEMPTS: u8 = 3;
 /// Retries of one SDO step after a timeout.
 pub const SDO_RETRIES: u8 = 2;
+/// Tries of each probe upload (statusword, position) before the node is booted unprobed.
+pub const PROBE_ATTEMPTS: u8 = 2;
 /// Consecutive SYNC cycles without complete feedback before a drive is lost: 10 cycles
 /// (200 ms at 50 Hz). With 5 % frame loss a drive misses a cycle with p ~ 0.14, so 10 in a
 /// row happens about once in 5e8 cycles, while a dead drive is still caught within 0.2 s
@@ -139,6 +147,14 @@ pub enum LostReaction {
 pub enum NodePhase {
     /// Not started.
     Idle,
+    /// Reading the node's state before anything is sent to it: step 0 the statusword,
+    /// step 1 the position.
+    Probing {
+        /// Upload in flight.
+        step: u8,
+        /// Tries of that upload so far.
+        attempts: u8,
+    },
     /// Reset sent, waiting for the boot-up message.
     Booting {
         /// When the reset was sent.
@@ -189,7 +205,15 @@ pub struct NodeState {
     pub frozen_cycles: u32,
     /// The reaction to a lost drive.
     pub lost: LostReaction,
+    /// The drive had torque on (Operation enabled or Quick stop active) when the master
+    /// started: it holds the body and is taken over at its position, never disabled first.
+    pub adopted: bool,
+    /// Statusword found by the probe before the boot, if the node answered.
+    pub probed_statusword: Option<u16>,
+    /// A TPDO1 arrived since the node became operational: its state is known.
+    pub state_known: bool,
     commanded: bool,
+    quick_stop_hold_sent: bool,
     sdo: SdoClient,
     got_tpdo1: bool,
     got_tpdo2: bool,
@@ -213,7 +237,11 @@ impl NodeState {
             target_increments: 0,
             frozen_cycles: 0,
             lost: LostReaction::None,
+            adopted: false,
+            probed_statusword: None,
+            state_known: false,
             commanded: false,
+            quick_stop_hold_sent: false,
             sdo: SdoClient::idle(),
             got_tpdo1: false,
             got_tpdo2: false,
@@ -307,21 +335,64 @@ impl Master {
         }
     }
 
-    /// Resets all nodes' communication and starts configuring them as they boot.
+    /// Starts the master: probes every node's state (statusword, position) by SDO, then
+    /// resets its communication and configures it as it boots.
     pub fn start(&mut self, now_us: u64) {
         self.started = true;
         self.next_heartbeat_us = now_us;
         for j in 0..NUM_JOINTS {
             self.nodes[j] = NodeState::new();
-            self.nodes[j].phase = NodePhase::Booting {
-                since_us: now_us,
-                attempts: 1,
-            };
             self.nodes[j].fault = self.bus_off[can_bus(j)].then_some(NodeFault::BusOff);
+            self.begin_probe(j, now_us);
         }
-        for bus in 0..NUM_BUSES {
-            self.push(bus, NmtCommand::ResetCommunication.frame(0));
+    }
+
+    /// Probes node `joint` again (after its bus came back), keeping what it knew.
+    fn begin_probe(&mut self, joint: usize, now_us: u64) {
+        let node = &mut self.nodes[joint];
+        node.phase = NodePhase::Probing {
+            step: 0,
+            attempts: 1,
+        };
+        node.sdo.cancel();
+        self.probe_request(joint, now_us);
+    }
+
+    fn probe_request(&mut self, joint: usize, now_us: u64) {
+        let node = &mut self.nodes[joint];
+        let NodePhase::Probing { step, .. } = node.phase else {
+            return;
+        };
+        let address = if step == 0 {
+            od::STATUSWORD
+        } else {
+            od::POSITION_ACTUAL
+        };
+        if let Some(frame) =
+            node.sdo
+                .start(SdoRequest::Upload { address }, can_node_id(joint), now_us)
+        {
+            self.push(can_bus(joint), frame);
         }
+    }
+
+    /// Probe done (or given up): reset the node's communication and wait for its boot-up.
+    fn begin_boot(&mut self, joint: usize, now_us: u64) {
+        let node = &mut self.nodes[joint];
+        node.sdo.cancel();
+        node.phase = NodePhase::Booting {
+            since_us: now_us,
+            attempts: 1,
+        };
+        self.push(
+            can_bus(joint),
+            NmtCommand::ResetCommunication.frame(can_node_id(joint)),
+        );
+    }
+
+    /// True when some drive was holding the body when the master started (adopted).
+    pub fn any_adopted(&self) -> bool {
+        self.nodes.iter().any(|n| n.adopted)
     }
 
     /// The state of joint `j`'s drive.
@@ -334,14 +405,18 @@ impl Master {
         self.nodes.iter().all(NodeState::is_healthy)
     }
 
-    /// True while some drive is still booting or being configured.
+    /// True while some drive is still being probed, booting or being configured, or is
+    /// operational but has not reported its state (TPDO1) yet.
     pub fn configuring(&self) -> bool {
         self.nodes.iter().any(|n| {
             n.fault.is_none()
-                && matches!(
-                    n.phase,
-                    NodePhase::Booting { .. } | NodePhase::Configuring { .. }
-                )
+                && match n.phase {
+                    NodePhase::Probing { .. }
+                    | NodePhase::Booting { .. }
+                    | NodePhase::Configuring { .. } => true,
+                    NodePhase::Operational => !n.state_known,
+                    NodePhase::Idle | NodePhase::Failed => false,
+                }
         })
     }
 
@@ -477,7 +552,8 @@ impl Master {
         let node = &mut self.nodes[joint];
         node.last_heartbeat_us = now_us;
         match (node.phase, state) {
-            (NodePhase::Booting { .. }, NmtState::BootUp) => {
+            // A node that boots while being probed has just powered up: configure it.
+            (NodePhase::Booting { .. } | NodePhase::Probing { .. }, NmtState::BootUp) => {
                 node.phase = NodePhase::Configuring {
                     step: 0,
                     retries: 0,
@@ -501,6 +577,10 @@ impl Master {
     }
 
     fn on_sdo(&mut self, joint: usize, p: &[u8], now_us: u64) {
+        if matches!(self.nodes[joint].phase, NodePhase::Probing { .. }) {
+            self.on_probe_sdo(joint, p, now_us);
+            return;
+        }
         let node = &mut self.nodes[joint];
         let NodePhase::Configuring { step, .. } = node.phase else {
             bump(&mut self.counters.unexpected_sdo);
@@ -543,6 +623,48 @@ impl Master {
         self.next_sdo(joint, now_us);
     }
 
+    fn on_probe_sdo(&mut self, joint: usize, p: &[u8], now_us: u64) {
+        let node = &mut self.nodes[joint];
+        let NodePhase::Probing { step, .. } = node.phase else {
+            return;
+        };
+        let outcome = match node.sdo.on_response(p) {
+            Ok(o) => o,
+            Err(super::sdo_client::SdoClientError::Malformed(_)) => {
+                bump(&mut self.counters.malformed);
+                return;
+            }
+            Err(super::sdo_client::SdoClientError::Unexpected) => {
+                bump(&mut self.counters.unexpected_sdo);
+                return;
+            }
+        };
+        match outcome {
+            SdoOutcome::Read(address, value, _) if address == od::STATUSWORD && step == 0 => {
+                let sw = value as u16;
+                node.probed_statusword = Some(sw);
+                node.statusword = sw;
+                node.power = PowerState::from_statusword(sw);
+                node.adopted = matches!(
+                    node.power,
+                    PowerState::OperationEnabled | PowerState::QuickStopActive
+                );
+                node.phase = NodePhase::Probing {
+                    step: 1,
+                    attempts: 1,
+                };
+                self.probe_request(joint, now_us);
+            }
+            SdoOutcome::Read(address, value, _) if address == od::POSITION_ACTUAL => {
+                node.q_rad = units::increments_to_rad(value as i32);
+                self.begin_boot(joint, now_us);
+            }
+            // Aborted (no such object) or anything else: boot without knowing.
+            SdoOutcome::TimedOut(_) => {}
+            _ => self.begin_boot(joint, now_us),
+        }
+    }
+
     /// Sends the current configuration step, or NMT start after the last one.
     fn next_sdo(&mut self, joint: usize, now_us: u64) {
         let node = &mut self.nodes[joint];
@@ -560,6 +682,9 @@ impl Master {
                 node.last_heartbeat_us = now_us;
                 node.awaiting_feedback = false;
                 node.missed_cycles = 0;
+                node.state_known = false;
+                node.commanded = false;
+                node.quick_stop_hold_sent = false;
                 self.push(can_bus(joint), NmtCommand::Start.frame(node_id));
                 return;
             }
@@ -595,6 +720,17 @@ impl Master {
         node.power = PowerState::from_statusword(t.statusword);
         node.q_rad = units::increments_to_rad(t.position);
         node.got_tpdo1 = true;
+        if !node.state_known && node.phase == NodePhase::Operational {
+            node.state_known = true;
+            // Torque on in its first report: holding the body, adopt it (the probe may
+            // not have reached it).
+            if matches!(
+                node.power,
+                PowerState::OperationEnabled | PowerState::QuickStopActive
+            ) {
+                node.adopted = true;
+            }
+        }
         self.check_feedback(joint);
         if matches!(
             self.nodes[joint].power,
@@ -641,6 +777,22 @@ impl Master {
             }
             let node_id = can_node_id(j);
             match self.nodes[j].phase {
+                NodePhase::Probing { step, attempts } => {
+                    if let Some((SdoOutcome::TimedOut(_), abort)) =
+                        self.nodes[j].sdo.poll_timeout(node_id, now_us)
+                    {
+                        self.push(can_bus(j), abort);
+                        if attempts >= PROBE_ATTEMPTS {
+                            self.begin_boot(j, now_us);
+                        } else {
+                            self.nodes[j].phase = NodePhase::Probing {
+                                step,
+                                attempts: attempts + 1,
+                            };
+                            self.probe_request(j, now_us);
+                        }
+                    }
+                }
                 NodePhase::Booting { since_us, attempts }
                     if now_us.saturating_sub(since_us) >= BOOT_TIMEOUT_US =>
                 {
@@ -733,7 +885,8 @@ impl Master {
                 self.react_to_lost(j, requests[j]);
                 continue;
             }
-            if !node.is_reachable() {
+            // No controlword before the drive's state is known.
+            if !node.is_reachable() || !node.state_known {
                 continue;
             }
             if node.awaiting_feedback {
@@ -746,8 +899,19 @@ impl Master {
                 }
                 continue;
             }
-            let cw = next_controlword(node.power, requests[j], node.controlword);
-            node.controlword = cw;
+            let mut cw = next_controlword(node.power, requests[j], node.controlword);
+            if node.power == PowerState::OperationEnabled {
+                node.quick_stop_hold_sent = false;
+            }
+            if node.power == PowerState::QuickStopActive && requests[j] == DriveRequest::Enable {
+                // Leaving Quick stop active only deliberately: for a drive adopted at its
+                // position, after one cycle that set its target to where it is.
+                if node.adopted && node.quick_stop_hold_sent {
+                    cw = CW_ENABLE_OPERATION;
+                } else {
+                    node.quick_stop_hold_sent = true;
+                }
+            }
             let follow = node.power == PowerState::OperationEnabled
                 && requests[j] == DriveRequest::Enable
                 && targets_rad[j].is_finite();

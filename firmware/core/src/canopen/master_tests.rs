@@ -19,15 +19,49 @@ fn pending_request(m: &mut Master, node: u8) -> Option<SdoRequest> {
     found
 }
 
+fn upload(node: u8, address: od::ObjectAddress, value: u32, len: u8) -> CanFrame {
+    SdoResponse::Upload {
+        address,
+        data: value.to_le_bytes(),
+        len,
+    }
+    .frame(node)
+}
+
+/// Answers node `node`'s probe (statusword, then position).
+fn answer_probe(m: &mut Master, node: u8, statusword: u16, position: i32, now_us: u64) {
+    let bus = can_bus(node as usize - 1);
+    m.on_frame(bus, &upload(node, od::STATUSWORD, statusword as u32, 2), now_us);
+    m.on_frame(bus, &upload(node, od::POSITION_ACTUAL, position as u32, 4), now_us);
+}
+
 #[test]
-fn start_resets_both_buses_and_waits_for_boot_up() {
+fn start_probes_each_node_before_resetting_it() {
     let mut m = Master::new();
     m.start(0);
-    for bus in 0..NUM_BUSES {
-        assert_eq!(m.pop_tx(bus), Some(NmtCommand::ResetCommunication.frame(0)));
-    }
+    // First an upload of the statusword: nothing that changes the drive's state.
+    assert_eq!(
+        pending_request(&mut m, 1),
+        Some(SdoRequest::Upload {
+            address: od::STATUSWORD
+        })
+    );
     assert!(m.configuring());
-    m.on_frame(0, &boot_up(1), 10);
+    m.on_frame(0, &upload(1, od::STATUSWORD, 0x0250, 2), 1_000);
+    assert_eq!(
+        pending_request(&mut m, 1),
+        Some(SdoRequest::Upload {
+            address: od::POSITION_ACTUAL
+        })
+    );
+    m.on_frame(0, &upload(1, od::POSITION_ACTUAL, 1234, 4), 2_000);
+    assert!(!m.node(0).adopted, "switch on disabled: nothing to adopt");
+    let mut reset = false;
+    while let Some(f) = m.pop_tx(0) {
+        reset |= f == NmtCommand::ResetCommunication.frame(1);
+    }
+    assert!(reset, "reset communication of node 1 after its probe");
+    m.on_frame(0, &boot_up(1), 10_000);
     assert_eq!(
         m.node(0).phase,
         NodePhase::Configuring {
@@ -44,10 +78,75 @@ fn start_resets_both_buses_and_waits_for_boot_up() {
 }
 
 #[test]
+fn drives_holding_the_body_are_adopted_and_never_disabled() {
+    let mut m = Master::new();
+    m.start(0);
+    // Node 1 in Operation enabled, node 2 in Quick stop active, node 3 disabled.
+    answer_probe(&mut m, 1, 0x1637, 50_000, 1_000);
+    answer_probe(&mut m, 2, 0x0217, -20_000, 1_000);
+    answer_probe(&mut m, 3, 0x0250, 0, 1_000);
+    assert!(m.node(0).adopted && m.node(1).adopted && !m.node(2).adopted);
+    assert!(m.any_adopted());
+    assert!((m.node(0).q_rad - units::increments_to_rad(50_000)).abs() < 1e-6);
+    // After configuration the drive is operational; in Quick stop active (the reset of
+    // communication made it stop) it is left only deliberately: one cycle holding at its
+    // position with quick stop, then enable operation with the target where it is.
+    m.nodes[1].phase = NodePhase::Operational;
+    let tpdo1 = |sw: u16, pos: i32| {
+        let t = Tpdo1 {
+            statusword: sw,
+            position: pos,
+        };
+        CanFrame::new_truncating(0x182, &t.encode())
+    };
+    let rpdo = |m: &mut Master| {
+        let mut last = None;
+        while let Some(f) = m.pop_tx(0) {
+            if f.cob_id() == 0x202 {
+                last = Rpdo1::decode(f.payload());
+            }
+        }
+        last
+    };
+    // No controlword before the drive's state is known.
+    m.sync();
+    m.send_commands(&[DriveRequest::Enable; NUM_JOINTS], &[0.3; NUM_JOINTS]);
+    assert_eq!(rpdo(&mut m), None);
+    for cycle in 0..3 {
+        m.sync();
+        m.on_frame(0, &tpdo1(0x0217, -20_100), 0);
+        m.on_frame(0, &CanFrame::new_truncating(0x282, &[0; 6]), 0);
+        m.send_commands(&[DriveRequest::Enable; NUM_JOINTS], &[0.3; NUM_JOINTS]);
+        let r = rpdo(&mut m).expect("RPDO");
+        assert_eq!(r.target_position, -20_100, "cycle {cycle}: held where it is");
+        let expected = if cycle == 0 { 0x0002 } else { 0x000F };
+        assert_eq!(r.controlword, expected, "cycle {cycle}");
+    }
+}
+
+#[test]
+fn a_drive_in_quick_stop_that_was_not_adopted_stays_in_quick_stop() {
+    let mut m = Master::new();
+    m.nodes[0].phase = NodePhase::Operational;
+    m.nodes[0].state_known = true;
+    m.nodes[0].power = PowerState::QuickStopActive;
+    for _ in 0..3 {
+        m.send_commands(&[DriveRequest::Enable; NUM_JOINTS], &[0.3; NUM_JOINTS]);
+        assert_eq!(m.node(0).controlword, 0x0002);
+    }
+}
+
+#[test]
 fn silent_nodes_are_reset_again_then_given_up() {
     let mut m = Master::new();
     m.start(0);
+    // The probe times out (twice), then the resets.
     let mut t = 0;
+    for _ in 0..PROBE_ATTEMPTS {
+        t += super::super::sdo_client::SDO_TIMEOUT_US;
+        m.poll(t);
+    }
+    assert!(matches!(m.node(5).phase, NodePhase::Booting { .. }));
     for _ in 0..BOOT_ATTEMPTS {
         t += BOOT_TIMEOUT_US;
         m.poll(t);

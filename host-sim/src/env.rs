@@ -54,6 +54,16 @@ pub enum EnvError {
     Build(#[from] BuildError),
 }
 
+/// Where a robot starts and which way it faces (evaluation: before a feature, facing it).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpawnPose {
+    /// Base position (x, y) in the world, m; the height follows from the ground under the
+    /// base and the feet, as for every spawn.
+    pub position_m: [f32; 2],
+    /// Heading (yaw about z, from the world x axis), rad.
+    pub yaw_rad: f32,
+}
+
 /// One robot with its episode bookkeeping.
 struct Slot {
     robot: RobotWorld,
@@ -62,6 +72,7 @@ struct Slot {
     level: usize,
     column: usize,
     origin_m: [f32; 2],
+    spawn_pose: Option<SpawnPose>,
     command_progress: CommandProgress,
     command: [f32; 3],
     action: [f32; NUM_JOINTS],
@@ -108,7 +119,21 @@ impl HexapodEnv {
     /// Builds the environment from a config and a robot model.
     pub fn with_model(config: EnvConfig, model: &UrdfModel) -> Result<Self, EnvError> {
         config.validate("env config")?;
-        let terrain = Arc::new(Terrain::generate(&config.terrain));
+        let terrain = Terrain::generate(&config.terrain);
+        Self::build(config, model, terrain)
+    }
+
+    /// Builds the environment on a given ground (the evaluation course) instead of the one
+    /// `config.terrain` describes; robots spawn at the world origin unless given a
+    /// [`SpawnPose`]. Keep `config.curriculum` off: there are no tile rows to move between.
+    pub fn with_terrain(config: EnvConfig, terrain: Terrain) -> Result<Self, EnvError> {
+        config.validate("env config")?;
+        let model = UrdfModel::load(&crate::urdf_model::default_urdf_path())?;
+        Self::build(config, &model, terrain)
+    }
+
+    fn build(config: EnvConfig, model: &UrdfModel, terrain: Terrain) -> Result<Self, EnvError> {
+        let terrain = Arc::new(terrain);
         let ground = terrain.collider();
         let max_episode_steps = (config.episode_length_s / POLICY_DT_S).round() as usize;
         let slots: Result<Vec<Slot>, EnvError> = (0..config.num_envs)
@@ -128,6 +153,7 @@ impl HexapodEnv {
                     level,
                     column: i % columns,
                     origin_m: [0.0; 2],
+                    spawn_pose: None,
                     command_progress: CommandProgress::default(),
                     command: [0.0; 3],
                     action: [0.0; NUM_JOINTS],
@@ -198,6 +224,20 @@ impl HexapodEnv {
         let columns = self.config.terrain.columns.len().max(1);
         self.slots[i].level = level.min(rows - 1);
         self.slots[i].column = column % columns;
+    }
+
+    /// Spawns robot `i` at `pose` from its next reset on (`None`: back to its tile, at a
+    /// random offset and heading). The random draws of a reset are the same either way, so
+    /// a pose changes where a robot starts, not its randomized dynamics.
+    pub fn set_spawn_pose(&mut self, i: usize, pose: Option<SpawnPose>) {
+        self.slots[i].spawn_pose = pose;
+    }
+
+    /// Reseeds robot `i`'s random generator (randomization, noise, commands, pushes), so
+    /// that robots in different slots can draw the same dynamics (evaluation: trial k of
+    /// every test gets the same robot).
+    pub fn reseed(&mut self, i: usize, seed: u64) {
+        self.slots[i].rng = ChaCha8Rng::seed_from_u64(seed);
     }
 
     /// Where robot `i` started its current episode (x, y), m.
@@ -406,10 +446,14 @@ impl Slot {
         self.randomize(config);
         let [cx, cy] = self.terrain.tile_center_m(self.level, self.column);
         let spread = if config.terrain.tiles { 1.0 } else { 0.0 };
-        let x = cx + uniform(&mut self.rng, [-spread, spread]);
-        let y = cy + uniform(&mut self.rng, [-spread, spread]);
+        let mut x = cx + uniform(&mut self.rng, [-spread, spread]);
+        let mut y = cy + uniform(&mut self.rng, [-spread, spread]);
+        let mut yaw = uniform(&mut self.rng, [-std::f32::consts::PI, std::f32::consts::PI]);
+        if let Some(pose) = self.spawn_pose {
+            [x, y] = pose.position_m;
+            yaw = pose.yaw_rad;
+        }
         self.origin_m = [x, y];
-        let yaw = uniform(&mut self.rng, [-std::f32::consts::PI, std::f32::consts::PI]);
         let mut q = Q0_RAD;
         if config.randomization.enabled {
             for j in 0..NUM_JOINTS {

@@ -7,6 +7,7 @@
 
 pub mod bench;
 pub mod config;
+pub mod course;
 pub mod curriculum;
 pub mod demo;
 pub mod env;

@@ -17,6 +17,8 @@ pub enum TileKind {
     Flat,
     /// A pyramid slope, centre high.
     SmoothSlope,
+    /// A pyramid slope, centre low, without noise: every heading from the centre climbs it.
+    SmoothSlopeUp,
     /// A pyramid slope, centre low, with uniform height noise.
     RoughSlope,
     /// Pyramid stairs climbing from the centre outward.
@@ -129,6 +131,14 @@ impl Terrain {
         terrain
     }
 
+    /// A terrain from a height grid (x-major, `ix * ny + iy`, `cell_size_m` apart, the grid
+    /// point (0, 0) at the world origin) that is not a tile grid: the evaluation course.
+    pub fn from_heights(cell_size_m: f32, nx: usize, ny: usize, heights_m: Vec<f32>) -> Self {
+        assert!(nx >= 2 && ny >= 2 && heights_m.len() == nx * ny, "a height grid needs at least 2 x 2 points");
+        let config = TerrainConfig { tiles: false, rows: 1, columns: Vec::new(), cell_size_m, ..TerrainConfig::default() };
+        Self { config, nx, ny, heights_m }
+    }
+
     /// Difficulty in [0, 1] of a row.
     pub fn difficulty(&self, row: usize) -> f32 {
         if self.config.rows > 1 {
@@ -146,6 +156,7 @@ impl Terrain {
         match kind {
             TileKind::Flat => "flat".into(),
             TileKind::SmoothSlope => format!("slope {:.0} deg down", c.max_slope_deg * d),
+            TileKind::SmoothSlopeUp => format!("slope {:.0} deg up", c.max_slope_deg * d),
             TileKind::RoughSlope => format!("slope {:.0} deg up, noise +-{:.2} m", c.max_slope_deg * d, c.rough_noise_m * (0.5 + d)),
             TileKind::StairsUp | TileKind::StairsDown => format!("steps {:.2} m", step_height_m(c, d)),
             TileKind::DiscreteObstacles => format!("blocks +-{:.2} m", obstacle_height_m(c, d)),
@@ -214,6 +225,7 @@ impl Terrain {
                 let h = match kind {
                     TileKind::Flat => 0.0,
                     TileKind::SmoothSlope => -slope * d,
+                    TileKind::SmoothSlopeUp => slope * d,
                     TileKind::RoughSlope => slope * d + noise_at(x, y) * (0.5 + difficulty),
                     TileKind::StairsUp => step_h * (d / c.step_depth_m).ceil(),
                     TileKind::StairsDown => -step_h * (d / c.step_depth_m).ceil(),
@@ -307,6 +319,23 @@ mod tests {
         let [cx, cy] = t.tile_center_m(row, slope);
         let dh = t.height_at_m(cx + 2.0, cy) - t.height_at_m(cx + 3.0, cy);
         assert!((dh.atan().to_degrees() - 30.0).abs() < 0.5, "{}", dh.atan().to_degrees());
+    }
+
+    #[test]
+    fn smooth_uphill_slope_climbs_outward_at_the_rows_angle() {
+        let t = Terrain::generate(&TerrainConfig { tiles: true, rows: 4, columns: vec![TileKind::SmoothSlopeUp], ..Default::default() });
+        for row in 0..4 {
+            let [cx, cy] = t.tile_center_m(row, 0);
+            let want_deg = t.config.max_slope_deg * t.difficulty(row);
+            // Outward along +x, -x and +y: every heading from the centre climbs.
+            for (dx, dy) in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0)] {
+                let h = |r: f32| t.height_at_m(cx + dx * r, cy + dy * r);
+                let deg = (h(3.0) - h(2.0)).atan().to_degrees();
+                assert!((deg - want_deg).abs() < 0.05, "row {row}: {deg} deg, want {want_deg}");
+            }
+            assert_eq!(t.height_at_m(cx, cy), 0.0, "the centre platform is level");
+            assert!(t.feature(TileKind::SmoothSlopeUp, row).ends_with("deg up"));
+        }
     }
 
     #[test]

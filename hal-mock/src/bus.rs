@@ -19,9 +19,17 @@ pub struct BusFaults {
     pub loss_probability: f32,
     /// Delay between transmission and reception, microseconds.
     pub latency_us: u64,
-    /// The controller's CAN peripheral is bus-off: it can neither send nor receive.
+    /// A disturbance (shorted or stuck bus, a broken transceiver) that drives the
+    /// controller's CAN peripheral bus-off: while it lasts the peripheral can neither send
+    /// nor receive. Once it ends, the peripheral recovers as ISO 11898-1 says: after 128
+    /// occurrences of 11 consecutive recessive bits ([`BUS_OFF_RECOVERY_US`]).
     pub bus_off: bool,
 }
+
+/// Bit rate of both buses, bit/s.
+pub const BIT_RATE: u64 = 1_000_000;
+/// Bus-off recovery (ISO 11898-1): 128 x 11 recessive bits at [`BIT_RATE`], microseconds.
+pub const BUS_OFF_RECOVERY_US: u64 = 128 * 11 * 1_000_000 / BIT_RATE;
 
 /// Traffic counters of one bus.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -30,6 +38,10 @@ pub struct BusStats {
     pub frames: u64,
     /// Frames lost by injection.
     pub lost: u64,
+    /// Times the controller's peripheral went bus-off.
+    pub bus_off_events: u64,
+    /// Times it recovered (error active again).
+    pub bus_off_recoveries: u64,
 }
 
 /// One virtual bus.
@@ -40,6 +52,8 @@ pub struct VirtualBus {
     to_controller: VecDeque<(u64, CanFrame)>,
     to_drives: VecDeque<(u64, CanFrame)>,
     rng: SplitMix64,
+    /// The peripheral is bus-off; `Some(t)`: the disturbance ended at `t` and recovery runs.
+    bus_off_state: Option<Option<u64>>,
     /// Injected faults.
     pub faults: BusFaults,
     /// Counters.
@@ -57,15 +71,39 @@ impl VirtualBus {
             to_controller: VecDeque::new(),
             to_drives: VecDeque::new(),
             rng: SplitMix64::new(seed),
+            bus_off_state: None,
             faults: BusFaults::default(),
             stats: BusStats::default(),
             log: None,
         }
     }
 
-    /// Sets the bus clock.
+    /// Sets the bus clock (and runs the peripheral's bus-off state).
     pub fn set_time(&mut self, now_us: u64) {
         self.now_us = now_us;
+        self.update_bus_off();
+    }
+
+    fn update_bus_off(&mut self) {
+        match (self.faults.bus_off, self.bus_off_state) {
+            (true, None) => {
+                self.bus_off_state = Some(None);
+                self.stats.bus_off_events += 1;
+                self.to_controller.clear();
+            }
+            (true, Some(Some(_))) => self.bus_off_state = Some(None),
+            (false, Some(None)) => self.bus_off_state = Some(Some(self.now_us)),
+            (false, Some(Some(since))) if self.now_us >= since + BUS_OFF_RECOVERY_US => {
+                self.bus_off_state = None;
+                self.stats.bus_off_recoveries += 1;
+            }
+            _ => {}
+        }
+    }
+
+    /// True while the controller's peripheral is bus-off (disturbed or recovering).
+    pub fn peripheral_bus_off(&self) -> bool {
+        self.faults.bus_off || self.bus_off_state.is_some()
     }
 
     /// The controller's CAN peripheral is reset: frames waiting for it are gone (frames it
@@ -98,8 +136,9 @@ impl VirtualBus {
 
     /// A drive transmits.
     pub fn send_from_drive(&mut self, frame: &CanFrame) {
+        self.update_bus_off();
         if let Some(at) = self.transmit(frame) {
-            if !self.faults.bus_off {
+            if !self.peripheral_bus_off() {
                 self.to_controller.push_back((at, *frame));
             }
         }
@@ -121,7 +160,8 @@ impl VirtualBus {
 
 impl CanBus for VirtualBus {
     fn try_send(&mut self, frame: &CanFrame) -> Result<(), CanTxError> {
-        if self.faults.bus_off {
+        self.update_bus_off();
+        if self.peripheral_bus_off() {
             return Err(CanTxError::BusOff);
         }
         if let Some(at) = self.transmit(frame) {
@@ -131,7 +171,8 @@ impl CanBus for VirtualBus {
     }
 
     fn try_receive(&mut self) -> Option<CanFrame> {
-        if self.faults.bus_off {
+        self.update_bus_off();
+        if self.peripheral_bus_off() {
             self.to_controller.clear();
             return None;
         }
@@ -145,7 +186,7 @@ impl CanBus for VirtualBus {
     }
 
     fn is_bus_off(&self) -> bool {
-        self.faults.bus_off
+        self.peripheral_bus_off()
     }
 }
 
@@ -171,5 +212,24 @@ mod tests {
 
         bus.faults.bus_off = true;
         assert_eq!(bus.try_send(&f), Err(CanTxError::BusOff));
+    }
+
+    #[test]
+    fn bus_off_recovers_after_128_times_11_recessive_bits() {
+        let mut bus = VirtualBus::new(0, 7);
+        bus.faults.bus_off = true;
+        bus.set_time(1_000);
+        assert!(bus.is_bus_off());
+        bus.faults.bus_off = false;
+        bus.set_time(50_000);
+        assert!(bus.is_bus_off(), "recovery starts when the disturbance ends");
+        bus.set_time(50_000 + BUS_OFF_RECOVERY_US - 1);
+        assert!(bus.is_bus_off());
+        bus.set_time(50_000 + BUS_OFF_RECOVERY_US);
+        assert!(!bus.is_bus_off());
+        assert_eq!(BUS_OFF_RECOVERY_US, 1_408);
+        assert_eq!((bus.stats.bus_off_events, bus.stats.bus_off_recoveries), (1, 1));
+        let f = CanFrame::data_frame(0x181, &[1]).unwrap();
+        assert_eq!(bus.try_send(&f), Ok(()));
     }
 }

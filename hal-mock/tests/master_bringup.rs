@@ -47,7 +47,7 @@ impl Bench {
         self.rig.step(self.now_us, &mut self.plant);
         for bus in 0..2 {
             let off = self.rig.buses[bus].is_bus_off();
-            self.master.set_bus_off(bus, off);
+            self.master.set_bus_off(bus, off, self.now_us);
             while let Some(f) = self.rig.buses[bus].try_receive() {
                 self.master.on_frame(bus, &f, self.now_us);
             }

@@ -190,7 +190,7 @@ impl Controller {
         if bus_index >= NUM_BUSES {
             return;
         }
-        self.master.set_bus_off(bus_index, bus.is_bus_off());
+        self.master.set_bus_off(bus_index, bus.is_bus_off(), now_us);
         while let Some(frame) = bus.try_receive() {
             self.master.on_frame(bus_index, &frame, now_us);
         }

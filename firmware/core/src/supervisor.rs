@@ -14,7 +14,7 @@
 //! |---|---|---|
 //! | drive EMCY / drive fault | master (EMCY, statusword) | `SafeSitDown`: the other drives lower the body slowly to `Q_SIT_RAD`, then torque off |
 //! | lost drive: heartbeat (5 x 100 ms), feedback (10 cycles), NMT state | master | the drive: target frozen from the first cycle without its feedback, then controlword quick stop each cycle (it holds its joint, 0x605A = 6), once seated disable voltage (3 cycles) and NMT stop ([`crate::canopen::master::LostReaction`]); the robot: `SafeSitDown` on the others |
-//! | bus-off | CAN driver | `SafeHold`: the other bus's drives hold their targets (its legs keep the body up); sit down once the arm switch goes off |
+//! | bus-off | CAN driver | `SafeHold`: the other bus's drives hold their targets (its legs keep the body up; the lost bus's drives hold by themselves, quick stop on the master's heartbeat); the CAN controller recovers after 128 x 11 recessive bits (ISO 11898-1), the master then probes, reconfigures and adopts that bus's drives, and the robot sits down on all legs; sit down on the other bus once the arm switch goes off if it does not recover |
 //! | IMU stale | IMU timestamps | `SafeSitDown` (joint-space sit-down needs no IMU) |
 //! | RC lost (failsafe) | CRSF receiver | `SafeSitDown` |
 //! | tilt beyond the limit | attitude filter | `Faulted` with torque off at once: the robot is falling over and stiff legs only make it worse |
@@ -25,8 +25,8 @@
 //!
 //! `SafeSitDown` ends in `Faulted` (drives disabled). Faults while `Disabled` latch
 //! `Faulted` directly. Leaving `Faulted` needs the arm switch off, the cause gone and a
-//! recoverable fault (drive faults are cleared by a CiA 402 fault reset; lost heartbeat,
-//! bus-off and configuration faults need a restart). Drives whose own link to the master
+//! recoverable fault (drive faults are cleared by a CiA 402 fault reset, bus-off by the
+//! bus's recovery; lost heartbeat and configuration faults need a restart). Drives whose own link to the master
 //! is lost hold position by themselves (quick stop on heartbeat loss, see
 //! [`crate::canopen::drive_config`]).
 
@@ -138,7 +138,8 @@ impl Fault {
     pub fn recoverable(self) -> bool {
         match self {
             Fault::Drive { fault, .. } => fault.link_alive(),
-            Fault::BusOff { .. } => false,
+            // The bus recovers by itself; its drives are re-synchronized (the fault clears).
+            Fault::BusOff { .. } => true,
             _ => true,
         }
     }
@@ -434,9 +435,12 @@ impl Supervisor {
                 }
             }
             Mode::SafeHold { fault: cause } => {
+                let bus_back = i.drive_fault.is_none() && !i.configuring;
                 if fault == Some(Fault::Tilt) {
                     self.mode = Mode::Faulted { fault: Fault::Tilt };
-                } else if i.rc.link_ok && !i.rc.arm {
+                } else if bus_back || (i.rc.link_ok && !i.rc.arm) {
+                    // The bus recovered and its drives are adopted again (or the operator
+                    // switched off): sit down, on all legs when the bus is back.
                     self.from_rad = self.targets_rad;
                     self.mode = Mode::SafeSitDown {
                         since_us: now,

@@ -279,6 +279,10 @@ pub struct MasterCounters {
     pub emergencies: u32,
     /// Remote frames, NMT, SYNC or RPDOs seen from another master.
     pub ignored: u32,
+    /// Bus-off events (either bus).
+    pub bus_off_events: u32,
+    /// Recoveries from bus-off, each followed by a re-synchronization of the bus's drives.
+    pub bus_off_recoveries: u32,
 }
 
 fn bump(counter: &mut u32) {
@@ -331,6 +335,8 @@ impl Master {
                 tx_overflow: 0,
                 emergencies: 0,
                 ignored: 0,
+                bus_off_events: 0,
+                bus_off_recoveries: 0,
             },
         }
     }
@@ -480,16 +486,35 @@ impl Master {
         }
     }
 
-    /// Reports the bus state from the CAN driver; bus-off faults every drive on the bus.
-    pub fn set_bus_off(&mut self, bus: usize, bus_off: bool) {
+    /// Reports the bus state from the CAN driver (`now_us` for the re-synchronization).
+    ///
+    /// Bus-off faults every drive on the bus. The CAN controller recovers by itself
+    /// (ISO 11898-1: after 128 x 11 recessive bits; the firmware enables automatic
+    /// recovery): when the bus is back, its drives' faults are cleared and each drive is
+    /// probed, reset, configured and adopted again as at start, so a drive that still
+    /// holds the body is never disabled.
+    pub fn set_bus_off(&mut self, bus: usize, bus_off: bool, now_us: u64) {
         let Some(flag) = self.bus_off.get_mut(bus) else {
             return;
         };
+        let was = *flag;
         *flag = bus_off;
-        if bus_off {
+        if bus_off && !was {
             self.tx[bus].clear();
+            bump(&mut self.counters.bus_off_events);
             for j in (0..NUM_JOINTS).filter(|&j| can_bus(j) == bus) {
                 self.nodes[j].fault = Some(NodeFault::BusOff);
+            }
+        } else if was && !bus_off && self.started {
+            bump(&mut self.counters.bus_off_recoveries);
+            for j in (0..NUM_JOINTS).filter(|&j| can_bus(j) == bus) {
+                let node = &mut self.nodes[j];
+                if node.fault == Some(NodeFault::BusOff) || node.fault.is_none() {
+                    let q_rad = node.q_rad;
+                    *node = NodeState::new();
+                    node.q_rad = q_rad;
+                    self.begin_probe(j, now_us);
+                }
             }
         }
     }

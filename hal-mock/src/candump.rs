@@ -1,6 +1,8 @@
 //! CAN traffic logs in the candump format (`candump -l`), readable by can-utils
 //! (`canplayer`, `log2asc`), python-can (`can.CanutilsLogReader`) and SavvyCAN:
-//! `(1700000000.000000) can0 181#3706A0860100`.
+//! `(1700000000.000000) can0 181#3706A0860100`. Error frames are logged as SocketCAN
+//! reports them, with the error flag in the id: `(1700000000.000000) can0 20000080#...`
+//! (CAN_ERR_FLAG | CAN_ERR_BUSERROR).
 
 use hexapod_core::can_frame::CanFrame;
 use std::fmt::Write;
@@ -15,13 +17,48 @@ pub struct LogEntry {
     pub time_us: u64,
     /// Bus index (logged as `can<bus>`).
     pub bus: usize,
-    /// The frame.
+    /// The frame (for an error frame: id 0, the 8 bytes of SocketCAN's error report).
     pub frame: CanFrame,
+    /// An error frame on the wire (a frame destroyed by a bit error).
+    pub error_frame: bool,
+}
+
+/// SocketCAN's error frame flag and "bus error" class, as candump logs them.
+const ERROR_FRAME_ID: u32 = 0x2000_0080;
+
+impl LogEntry {
+    /// A data or remote frame.
+    pub fn frame(time_us: u64, bus: usize, frame: CanFrame) -> Self {
+        Self {
+            time_us,
+            bus,
+            frame,
+            error_frame: false,
+        }
+    }
+
+    /// An error frame.
+    pub fn error(time_us: u64, bus: usize) -> Self {
+        Self {
+            time_us,
+            bus,
+            frame: CanFrame::new_truncating(0, &[0; 8]),
+            error_frame: true,
+        }
+    }
 }
 
 /// Formats one entry as a candump log line (no newline).
 pub fn format_line(e: &LogEntry) -> String {
     let t = EPOCH_S * 1_000_000 + e.time_us;
+    if e.error_frame {
+        return format!(
+            "({}.{:06}) can{} {ERROR_FRAME_ID:08X}#0000000000000000",
+            t / 1_000_000,
+            t % 1_000_000,
+            e.bus
+        );
+    }
     let mut s = format!(
         "({}.{:06}) can{} {:03X}#",
         t / 1_000_000,
@@ -66,6 +103,15 @@ pub fn parse_line(line: &str) -> Result<LogEntry, CandumpError> {
         .and_then(|b| b.parse().ok())
         .ok_or_else(bad)?;
     let (id, data) = frame.split_once('#').ok_or_else(bad)?;
+    let time_us = (sec * 1_000_000 + usec)
+        .checked_sub(EPOCH_S * 1_000_000)
+        .ok_or_else(bad)?;
+    if id.len() == 8 && u32::from_str_radix(id, 16) == Ok(ERROR_FRAME_ID) {
+        return Ok(LogEntry::error(time_us, bus));
+    }
+    if id.len() > 3 {
+        return Err(bad());
+    }
     let id = u16::from_str_radix(id, 16).map_err(|_| bad())?;
     let frame = if data == "R" {
         let sid = embedded_can::StandardId::new(id).ok_or_else(bad)?;
@@ -80,14 +126,7 @@ pub fn parse_line(line: &str) -> Result<LogEntry, CandumpError> {
         }
         CanFrame::data_frame(id, &bytes).ok_or_else(bad)?
     };
-    let time_us = (sec * 1_000_000 + usec)
-        .checked_sub(EPOCH_S * 1_000_000)
-        .ok_or_else(bad)?;
-    Ok(LogEntry {
-        time_us,
-        bus,
-        frame,
-    })
+    Ok(LogEntry::frame(time_us, bus, frame))
 }
 
 /// The whole log, one line per frame, ordered by time (stable across buses).
@@ -109,21 +148,19 @@ mod tests {
     #[test]
     fn formats_like_candump() {
         let f = CanFrame::data_frame(0x181, &[0x37, 0x06, 0xA0, 0x86, 0x01, 0x00]).unwrap();
-        let e = LogEntry {
-            time_us: 20_000,
-            bus: 0,
-            frame: f,
-        };
+        let e = LogEntry::frame(20_000, 0, f);
         assert_eq!(format_line(&e), "(1700000000.020000) can0 181#3706A0860100");
         assert_eq!(parse_line(&format_line(&e)), Ok(e));
-        let sync = LogEntry {
-            time_us: 1,
-            bus: 1,
-            frame: CanFrame::data_frame(0x80, &[]).unwrap(),
-        };
+        let sync = LogEntry::frame(1, 1, CanFrame::data_frame(0x80, &[]).unwrap());
         assert_eq!(format_line(&sync), "(1700000000.000001) can1 080#");
         assert_eq!(parse_line(&format_line(&sync)), Ok(sync));
         assert!(parse_line("(1.0) can0 181#ABC").is_err());
         assert!(parse_line("garbage").is_err());
+        let err = LogEntry::error(5, 0);
+        assert_eq!(
+            format_line(&err),
+            "(1700000000.000005) can0 20000080#0000000000000000"
+        );
+        assert_eq!(parse_line(&format_line(&err)), Ok(err));
     }
 }

@@ -13,6 +13,10 @@ use crate::candump::{format_log, LogEntry};
 use crate::drive::Drive;
 use crate::plant::JointPlant;
 
+/// How long a drive takes from receiving a frame to queueing its answer (a SYNC to its
+/// TPDOs), nanoseconds.
+pub const DRIVE_RESPONSE_NS: u64 = 50_000;
+
 /// Two buses and 18 drives.
 #[derive(Clone, Debug)]
 pub struct DriveRig {
@@ -68,6 +72,14 @@ impl DriveRig {
         }
     }
 
+    /// Sends what drive `joint` answered to a frame it received at `received_ns`.
+    fn flush_reply(&mut self, joint: usize, received_ns: u64) {
+        let bus = &mut self.buses[can_bus(joint)];
+        for f in self.out.drain(..) {
+            bus.send_from_drive_at(&f, received_ns + DRIVE_RESPONSE_NS);
+        }
+    }
+
     /// Injects a drive fault: the drive goes to Fault (torque off) and sends its EMCY.
     pub fn inject_drive_fault(&mut self, joint: usize, error_code: u16) {
         self.drives[joint].inject_fault(error_code, &mut self.out);
@@ -88,10 +100,10 @@ impl DriveRig {
             self.drives[j].set_feedback(plant.joint_state(j));
         }
         for bus in 0..2 {
-            for frame in self.buses[bus].take_for_drives() {
+            for (received_ns, frame) in self.buses[bus].take_for_drives_timed() {
                 for j in (0..NUM_JOINTS).filter(|&j| can_bus(j) == bus) {
                     self.drives[j].on_frame(&frame, now_us, &mut self.out);
-                    self.flush(j);
+                    self.flush_reply(j, received_ns);
                 }
             }
         }

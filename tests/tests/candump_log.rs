@@ -1,5 +1,6 @@
 //! A SIL run recorded in the candump log format: boot, stand-up, walking with the generated
-//! policy, a drive EMCY and the safe sit-down. The log is written to
+//! policy (with bit errors on the buses: error frames in the log), a drive EMCY and the safe
+//! sit-down. The log is written to
 //! `target/tmp/sil/physics.log` (CI reads it with python-can's candump reader) and must
 //! parse back frame by frame.
 
@@ -20,6 +21,9 @@ fn records_a_physics_run_as_a_candump_log() {
     sil.stand_up().expect("stands up");
     let mut policy = generated_policy().expect("valid generated policy");
     sil.h.rc.set_sticks(0.6, 0.0, 0.0);
+    for bus in &mut sil.h.rig.buses {
+        bus.faults.error_probability = 0.005;
+    }
     sil.run(2.0, &mut policy);
     sil.h.rig.inject_drive_fault(FAULTY_JOINT, EMCY_CODE);
     assert!(sil.run_until(7.0, &mut policy, |m| matches!(m, Mode::Faulted { .. })));
@@ -34,7 +38,16 @@ fn records_a_physics_run_as_a_candump_log() {
         entries.windows(2).all(|w| w[0].time_us <= w[1].time_us),
         "time goes back"
     );
-    let syncs = entries.iter().filter(|e| e.frame.cob_id() == SYNC).count() as u32;
+    let error_frames = entries.iter().filter(|e| e.error_frame).count() as u64;
+    assert!(error_frames > 0);
+    assert_eq!(
+        error_frames,
+        sil.h.rig.buses.iter().map(|b| b.stats.error_frames).sum::<u64>()
+    );
+    let syncs = entries
+        .iter()
+        .filter(|e| !e.error_frame && e.frame.cob_id() == SYNC)
+        .count() as u32;
     assert_eq!(
         syncs,
         2 * sil.h.controller.stats.cycles,

@@ -474,6 +474,9 @@ impl Supervisor {
 
     fn command(&mut self, i: &Inputs, clear_faults: bool) -> Command {
         let (request, targets) = match self.mode {
+            // Drives that hold the body after a restart keep holding (quick stop) until
+            // every drive's state is known; nothing is disabled under load.
+            Mode::Configuring if i.drives_adopted => (DriveRequest::QuickStop, *i.q_rad),
             Mode::Boot | Mode::Configuring | Mode::Disabled => (DriveRequest::Disable, *i.q_rad),
             Mode::Faulted { .. } if clear_faults => (DriveRequest::FaultReset, *i.q_rad),
             Mode::Faulted { .. } => (DriveRequest::Disable, *i.q_rad),

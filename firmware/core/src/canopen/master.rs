@@ -587,6 +587,9 @@ impl Master {
                 self.next_sdo(joint, now_us);
             }
             (NodePhase::Operational, NmtState::Operational) => {}
+            // A heartbeat sent before the drive processed our NMT start (it was on the bus
+            // behind it): not a state change until the drive has shown it runs (TPDO1).
+            (NodePhase::Operational, NmtState::PreOperational) if !node.state_known => {}
             (NodePhase::Operational, _) => self.fail(joint, NodeFault::UnexpectedNmtState),
             (NodePhase::Configuring { .. }, NmtState::BootUp) => {
                 // Rebooted mid-configuration: start over.

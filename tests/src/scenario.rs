@@ -28,6 +28,10 @@ use crate::gait_policy::GaitPolicy;
 use crate::sil::{generated_policy, GeneratedPolicy, Sil};
 use crate::sim_plant::PlantError;
 
+fn one() -> f32 {
+    1.0
+}
+
 /// One scenario file.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -110,6 +114,17 @@ pub enum Step {
     FrameLoss {
         /// Probability in [0, 1].
         probability: f32,
+        /// Mean length of a loss burst, frames (1: independent).
+        #[serde(default = "one")]
+        burst_frames: f32,
+        /// Probability of a bit error per transmission (error frame, retransmission).
+        #[serde(default)]
+        error_probability: f32,
+    },
+    /// The disturbance that held `bus` bus-off ends (the peripheral then recovers).
+    BusOn {
+        /// Bus index.
+        bus: usize,
     },
     /// A drive fault with its EMCY.
     DriveFault {
@@ -265,10 +280,25 @@ fn apply(sil: &mut Sil, policies: &mut Policies, step: &Step) -> Result<(), Stri
                 .faults
                 .bus_off = true;
         }
-        Step::FrameLoss { probability } => {
+        Step::FrameLoss {
+            probability,
+            burst_frames,
+            error_probability,
+        } => {
             for bus in &mut sil.h.rig.buses {
                 bus.faults.loss_probability = probability;
+                bus.faults.loss_burst_frames = burst_frames;
+                bus.faults.error_probability = error_probability;
             }
+        }
+        Step::BusOn { bus } => {
+            sil.h
+                .rig
+                .buses
+                .get_mut(bus)
+                .ok_or("no such bus")?
+                .faults
+                .bus_off = false;
         }
         Step::DriveFault { joint, error_code } => sil.h.rig.inject_drive_fault(joint, error_code),
         Step::MuteDrive { joint } => sil.h.rig.set_drive_mute(joint, true),

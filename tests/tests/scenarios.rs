@@ -18,12 +18,28 @@ fn every_scenario_file_passes() {
     for path in &paths {
         let scenario = Scenario::load(path).unwrap_or_else(|e| panic!("{e}"));
         match scenario.run() {
-            Ok(sil) => eprintln!(
-                "ok   {}: {} ({:.1} s simulated)",
-                path.file_name().unwrap().to_string_lossy(),
-                scenario.description,
-                sil.time_s()
-            ),
+            Ok(sil) => {
+                eprintln!(
+                    "ok   {}: {} ({:.1} s simulated)",
+                    path.file_name().unwrap().to_string_lossy(),
+                    scenario.description,
+                    sil.time_s()
+                );
+                for (b, bus) in sil.h.rig.buses.iter().enumerate() {
+                    let s = &bus.stats;
+                    if let (Some((lat, lat_max)), Some((load, load_max))) =
+                        (s.feedback_latency_us(), s.load(usize::MAX))
+                    {
+                        eprintln!(
+                            "     bus {b}: feedback latency mean {lat:.0} us (worst {lat_max:.0}),                              load per cycle mean {:.1} % (worst {:.1} %), {} error frames, {} lost",
+                            100.0 * load,
+                            100.0 * load_max,
+                            s.error_frames,
+                            s.lost
+                        );
+                    }
+                }
+            }
             Err(e) => failures.push(format!("{}: {e}", path.display())),
         }
     }

@@ -13,7 +13,7 @@
 //! | fault | detected by | reaction while the robot stands or walks |
 //! |---|---|---|
 //! | drive EMCY / drive fault | master (EMCY, statusword) | `SafeSitDown`: the other drives lower the body slowly to `Q_SIT_RAD`, then torque off |
-//! | lost drive: heartbeat (5 x 100 ms), feedback (10 cycles), NMT state | master | the drive: target frozen from the first cycle without its feedback, then controlword quick stop each cycle (it holds its joint, 0x605A = 6), once seated disable voltage (3 cycles) and NMT stop ([`crate::canopen::master::LostReaction`]); the robot: `SafeSitDown` on the others |
+//! | lost drive: heartbeat (5 x 100 ms), feedback (10 cycles), NMT state | master | the drive: target frozen from the third cycle in a row without its feedback (one or two misses are frame loss), then controlword quick stop each cycle (it holds its joint, 0x605A = 6), once seated disable voltage (3 cycles) and NMT stop ([`crate::canopen::master::LostReaction`]); the robot: `SafeSitDown` on the others |
 //! | bus-off | CAN driver | `SafeHold`: the other bus's drives hold their targets (its legs keep the body up; the lost bus's drives hold by themselves, quick stop on the master's heartbeat); the CAN controller recovers after 128 x 11 recessive bits (ISO 11898-1), the master then probes, reconfigures and adopts that bus's drives, and the robot sits down on all legs; sit down on the other bus once the arm switch goes off if it does not recover |
 //! | IMU stale | IMU timestamps | `SafeSitDown` (joint-space sit-down needs no IMU) |
 //! | RC lost (failsafe) | CRSF receiver | `SafeSitDown` |

@@ -658,7 +658,10 @@ mod tests {
         assert!(bus.is_bus_off());
         bus.faults.bus_off = false;
         bus.set_time(50_000);
-        assert!(bus.is_bus_off(), "recovery starts when the disturbance ends");
+        assert!(
+            bus.is_bus_off(),
+            "recovery starts when the disturbance ends"
+        );
         bus.set_time(50_000 + BUS_OFF_RECOVERY_US - 1);
         assert!(bus.is_bus_off());
         bus.set_time(50_000 + BUS_OFF_RECOVERY_US);

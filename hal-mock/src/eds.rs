@@ -351,7 +351,10 @@ impl Eds {
 
     /// True when some subindex of `index` exists.
     pub fn has_index(&self, index: u16) -> bool {
-        self.entries.range((index, 0)..=(index, u8::MAX)).next().is_some()
+        self.entries
+            .range((index, 0)..=(index, u8::MAX))
+            .next()
+            .is_some()
     }
 
     /// The emulated servo drive's data sheet, parsed once.
@@ -379,7 +382,10 @@ mod tests {
             eds.entry(0x1400, 1).unwrap().default_raw(5),
             Ok(0x8000_0205)
         );
-        assert_eq!(eds.entry(0x60C2, 2).unwrap().default_raw(5), Ok(-3i32 as u32));
+        assert_eq!(
+            eds.entry(0x60C2, 2).unwrap().default_raw(5),
+            Ok(-3i32 as u32)
+        );
         assert_eq!(
             eds.entry(0x1000, 0).unwrap().default_raw(1),
             Ok(0x0002_0192)

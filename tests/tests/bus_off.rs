@@ -27,7 +27,10 @@ fn bus_off_recovers_resyncs_and_sits_down_on_all_legs() {
     sil.h.rig.buses[0].faults.bus_off = false;
     let t_back = sil.time_s();
     assert!(
-        sil.run_until(1.0, &mut ZeroPolicy, |m| matches!(m, Mode::SafeSitDown { .. })),
+        sil.run_until(1.0, &mut ZeroPolicy, |m| matches!(
+            m,
+            Mode::SafeSitDown { .. }
+        )),
         "{:?}",
         sil.mode()
     );

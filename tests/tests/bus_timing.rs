@@ -45,7 +45,10 @@ fn configuration_never_needs_more_than_the_bus() {
     sil.boot().expect("boots");
     for (b, bus) in sil.h.rig.buses.iter().enumerate() {
         let (_, load_max) = bus.stats.load(usize::MAX).expect("cycles");
-        println!("bus {b}: worst cycle load during bring-up {:.1} %", 100.0 * load_max);
+        println!(
+            "bus {b}: worst cycle load during bring-up {:.1} %",
+            100.0 * load_max
+        );
         assert!(load_max <= 1.0, "{load_max}");
     }
 }
@@ -86,5 +89,9 @@ fn walks_through_5_percent_burst_loss_and_error_frames() {
     assert!(errors > 50);
     let trace = &sil.plant().trace;
     assert!(trace.first_trunk_contact(t0).is_none());
-    assert!(trace.min_height_m(t0) > 0.2, "sagged to {}", trace.min_height_m(t0));
+    assert!(
+        trace.min_height_m(t0) > 0.2,
+        "sagged to {}",
+        trace.min_height_m(t0)
+    );
 }

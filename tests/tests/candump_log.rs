@@ -42,7 +42,12 @@ fn records_a_physics_run_as_a_candump_log() {
     assert!(error_frames > 0);
     assert_eq!(
         error_frames,
-        sil.h.rig.buses.iter().map(|b| b.stats.error_frames).sum::<u64>()
+        sil.h
+            .rig
+            .buses
+            .iter()
+            .map(|b| b.stats.error_frames)
+            .sum::<u64>()
     );
     let syncs = entries
         .iter()

@@ -80,7 +80,11 @@ fn a_drive_that_stops_transmitting_gets_a_frozen_target_then_quick_stop_then_nmt
         }
     }
     let qs = saw_quick_stop_at.expect("quick stop within 0.5 s");
-    assert!(qs - t_fault < 0.3, "quick stop {:.2} s after the loss", qs - t_fault);
+    assert!(
+        qs - t_fault < 0.3,
+        "quick stop {:.2} s after the loss",
+        qs - t_fault
+    );
     assert!(
         matches!(
             sil.mode(),

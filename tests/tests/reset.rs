@@ -47,7 +47,11 @@ fn assert_no_drop(sil: &mut Sil, t_reset: f32, down_s: f32, min_height_m: f32) {
     let trace = &sil.plant().trace;
     let off = *trace.torque_off(t_reset).expect("torque goes off");
     let seated = sitting_height_m() + 0.02;
-    assert!(off.height_m() < seated, "torque off at {} m: not seated", off.height_m());
+    assert!(
+        off.height_m() < seated,
+        "torque off at {} m: not seated",
+        off.height_m()
+    );
     // Until the sit-down has brought the body low, it stays up.
     let lowest_while_up = trace
         .since(t_reset)
@@ -65,7 +69,10 @@ fn assert_no_drop(sil: &mut Sil, t_reset: f32, down_s: f32, min_height_m: f32) {
     // settles by about 3 cm. After that the sit-down is as slow as any safe sit-down.
     assert!(sink < 0.3, "sinks at {sink} m/s");
     let sink_later = trace.max_sink_speed_m_s(t_reset + down_s + 0.5, off.t_s);
-    assert!(sink_later < 0.15, "sinks at {sink_later} m/s during the sit-down");
+    assert!(
+        sink_later < 0.15,
+        "sinks at {sink_later} m/s during the sit-down"
+    );
     assert!(
         trace
             .since(t_reset)
@@ -75,7 +82,12 @@ fn assert_no_drop(sil: &mut Sil, t_reset: f32, down_s: f32, min_height_m: f32) {
         "a drive lost torque before the robot was seated"
     );
     if let Some(c) = trace.first_trunk_contact(t_reset) {
-        assert!(c.t_s >= off.t_s, "trunk touched at {:.2} s, torque off at {:.2} s", c.t_s, off.t_s);
+        assert!(
+            c.t_s >= off.t_s,
+            "trunk touched at {:.2} s, torque off at {:.2} s",
+            c.t_s,
+            off.t_s
+        );
     }
     for d in &sil.h.rig.drives {
         assert_eq!(d.power_state(), PowerState::SwitchOnDisabled);
@@ -116,7 +128,10 @@ fn reset_mid_stand_up_never_drops_the_robot() {
     let mut sil = Sil::new(104).unwrap();
     sil.boot().expect("boots");
     sil.h.rc.set_arm(true);
-    assert!(sil.run_until(2.0, &mut ZeroPolicy, |m| matches!(m, Mode::StandingUp { .. })));
+    assert!(sil.run_until(2.0, &mut ZeroPolicy, |m| matches!(
+        m,
+        Mode::StandingUp { .. }
+    )));
     sil.run(1.5, &mut ZeroPolicy);
     assert!(matches!(sil.mode(), Mode::StandingUp { .. }));
     let h = sil.plant().state().base_pos_world_m[2];

@@ -20,15 +20,14 @@
 //! | tilt beyond the limit | attitude filter | `Faulted` with torque off at once: the robot is falling over and stiff legs only make it worse |
 //! | NaN / inf in observation or action | control step | `SafeSitDown` from the last finite targets |
 //! | deadline overrun | controller timing | `SafeSitDown` |
-//!
 //! | controller restart (IWDG, fault reset) with drives holding the body | master: statusword and position read by SDO (and the first TPDO1) before any controlword | drives in Operation enabled or Quick stop active adopted at their positions (quick stop left deliberately: target = actual position, then enable operation), then `SafeSitDown` from the measured joints (`Fault::Restarted`); the reset cause is kept ([`crate::hal::BootInfo`]) |
 //!
 //! `SafeSitDown` ends in `Faulted` (drives disabled). Faults while `Disabled` latch
 //! `Faulted` directly. Leaving `Faulted` needs the arm switch off, the cause gone and a
 //! recoverable fault (drive faults are cleared by a CiA 402 fault reset, bus-off by the
-//! bus's recovery; lost heartbeat and configuration faults need a restart). Drives whose own link to the master
-//! is lost hold position by themselves (quick stop on heartbeat loss, see
-//! [`crate::canopen::drive_config`]).
+//! bus's recovery; lost heartbeat and configuration faults need a restart). Drives whose
+//! own link to the master is lost hold position by themselves (quick stop on heartbeat
+//! loss, see [`crate::canopen::drive_config`]).
 
 use crate::canopen::cia402::DriveRequest;
 use crate::canopen::master::NodeFault;

@@ -194,7 +194,8 @@ impl Drive {
     pub fn inject_fault(&mut self, error_code: u16, out: &mut Vec<CanFrame>) {
         self.power = PowerState::Fault;
         self.objects.set_internal(od::ERROR_CODE, error_code as u32);
-        self.objects.set_internal(od::ObjectAddress::new(0x1001, 0), 0x01);
+        self.objects
+            .set_internal(od::ObjectAddress::new(0x1001, 0), 0x01);
         let e = Emcy {
             error_code,
             error_register: 0x01,
@@ -380,7 +381,8 @@ impl Drive {
             S::Fault | S::FaultReactionActive => {
                 if rising_reset {
                     self.objects.set_internal(od::ERROR_CODE, 0);
-                    self.objects.set_internal(od::ObjectAddress::new(0x1001, 0), 0);
+                    self.objects
+                        .set_internal(od::ObjectAddress::new(0x1001, 0), 0);
                     let e = Emcy {
                         error_code: emcy::ERROR_RESET,
                         error_register: 0,

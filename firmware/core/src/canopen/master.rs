@@ -7,7 +7,7 @@
 //!   not): it is *adopted* ([`NodeState::adopted`]). Then each node's communication is
 //!   reset (NMT 0x82; with 0x6007 = quick stop an enabled drive holds in Quick stop
 //!   active meanwhile) and the master waits for its boot-up;
-//! - each booted node runs the [`drive_config`] SDO script, then gets NMT start;
+//! - each booted node runs the [`drive_config`](super::drive_config) SDO script, then gets NMT start;
 //! - [`Master::sync`] begins a control cycle (SYNC on both buses), the drives answer with
 //!   TPDO1/TPDO2, [`Master::feedback_complete`] tells when all arrived, and
 //!   [`Master::send_commands`] sends one RPDO per drive (controlword from the CiA 402 state
@@ -971,8 +971,10 @@ impl Master {
             controlword,
             target_position: target_increments,
         };
-        let frame =
-            CanFrame::new_truncating(cob::RPDO_BASE[0] + can_node_id(joint) as u16, &rpdo.encode());
+        let frame = CanFrame::new_truncating(
+            cob::RPDO_BASE[0] + can_node_id(joint) as u16,
+            &rpdo.encode(),
+        );
         self.push(can_bus(joint), frame);
     }
 

@@ -31,8 +31,16 @@ fn upload(node: u8, address: od::ObjectAddress, value: u32, len: u8) -> CanFrame
 /// Answers node `node`'s probe (statusword, then position).
 fn answer_probe(m: &mut Master, node: u8, statusword: u16, position: i32, now_us: u64) {
     let bus = can_bus(node as usize - 1);
-    m.on_frame(bus, &upload(node, od::STATUSWORD, statusword as u32, 2), now_us);
-    m.on_frame(bus, &upload(node, od::POSITION_ACTUAL, position as u32, 4), now_us);
+    m.on_frame(
+        bus,
+        &upload(node, od::STATUSWORD, statusword as u32, 2),
+        now_us,
+    );
+    m.on_frame(
+        bus,
+        &upload(node, od::POSITION_ACTUAL, position as u32, 4),
+        now_us,
+    );
 }
 
 #[test]
@@ -118,7 +126,10 @@ fn drives_holding_the_body_are_adopted_and_never_disabled() {
         m.on_frame(0, &CanFrame::new_truncating(0x282, &[0; 6]), 0);
         m.send_commands(&[DriveRequest::Enable; NUM_JOINTS], &[0.3; NUM_JOINTS]);
         let r = rpdo(&mut m).expect("RPDO");
-        assert_eq!(r.target_position, -20_100, "cycle {cycle}: held where it is");
+        assert_eq!(
+            r.target_position, -20_100,
+            "cycle {cycle}: held where it is"
+        );
         let expected = if cycle == 0 { 0x0002 } else { 0x000F };
         assert_eq!(r.controlword, expected, "cycle {cycle}");
     }

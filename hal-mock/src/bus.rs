@@ -248,6 +248,9 @@ pub struct VirtualBus {
     errors: Bursts,
     /// The peripheral is bus-off; `Some(t)`: the disturbance ended at `t` and recovery runs.
     bus_off_state: Option<Option<u64>>,
+    /// The controller's transmit and receive error counters (ISO 11898-1 fault confinement).
+    tec: u16,
+    rec: u16,
     cycle: Option<CycleStats>,
     cycle_sync_end_ns: u64,
     cycle_busy_ns: u64,
@@ -273,6 +276,8 @@ impl VirtualBus {
             loss: Bursts::default(),
             errors: Bursts::default(),
             bus_off_state: None,
+            tec: 0,
+            rec: 0,
             cycle: None,
             cycle_sync_end_ns: 0,
             cycle_busy_ns: 0,
@@ -302,9 +307,21 @@ impl VirtualBus {
             (false, Some(Some(since))) if self.now_us >= since + BUS_OFF_RECOVERY_US => {
                 self.bus_off_state = None;
                 self.stats.bus_off_recoveries += 1;
+                self.tec = 0;
+                self.rec = 0;
             }
             _ => {}
         }
+    }
+
+    /// The controller's transmit and receive error counters.
+    pub fn error_counters(&self) -> (u16, u16) {
+        (self.tec, self.rec)
+    }
+
+    /// The controller's peripheral is error passive (an error counter above 127).
+    pub fn error_passive(&self) -> bool {
+        self.tec > 127 || self.rec > 127
     }
 
     /// True while the controller's peripheral is bus-off (disturbed or recovering).
@@ -391,12 +408,30 @@ impl VirtualBus {
                 self.stats.error_frames += 1;
                 self.stats.bits += at_bit + ERROR_FRAME_BITS;
                 self.cycle_busy_ns += busy;
+                // Fault confinement: the transmitter's TEC + 8, a receiver's REC + 1; a
+                // controller whose TEC passes 255 goes bus-off (and recovers by itself).
+                match source {
+                    Source::Controller => {
+                        self.tec = self.tec.saturating_add(8);
+                        if self.tec > 255 && self.bus_off_state.is_none() {
+                            self.stats.bus_off_events += 1;
+                            self.bus_off_state = Some(Some(self.now_us.max(start / 1000)));
+                            self.to_controller.clear();
+                            self.queue_of(Source::Controller).clear();
+                        }
+                    }
+                    Source::Drive(_) => self.rec = self.rec.saturating_add(1).min(255),
+                }
                 if let Some(log) = &mut self.log {
                     log.push(LogEntry::error(start / 1000, self.index));
                 }
                 continue;
             }
             self.pending[k].1.pop_front();
+            match source {
+                Source::Controller => self.tec = self.tec.saturating_sub(1),
+                Source::Drive(_) => self.rec = self.rec.saturating_sub(1),
+            }
             let busy = bits * BIT_NS;
             let end = start + busy;
             self.busy_until_ns = end;
@@ -648,6 +683,24 @@ mod tests {
             log.iter().filter(|e| e.error_frame).count() as u64,
             bus.stats.error_frames
         );
+    }
+
+    #[test]
+    fn sustained_transmit_errors_drive_the_controller_bus_off_and_it_recovers() {
+        let mut bus = VirtualBus::new(0, 3);
+        bus.faults.error_probability = 1.0;
+        let f = CanFrame::data_frame(0x080, &[]).unwrap();
+        bus.try_send(&f).unwrap();
+        bus.set_time(2_000);
+        // 32 destroyed attempts: TEC 256 > 255, bus-off; the recovery runs by itself.
+        assert_eq!(bus.stats.error_frames, 32);
+        assert!(bus.is_bus_off());
+        assert_eq!(bus.stats.bus_off_events, 1);
+        bus.faults.error_probability = 0.0;
+        bus.set_time(4_000);
+        assert!(!bus.is_bus_off());
+        assert_eq!(bus.error_counters(), (0, 0));
+        assert_eq!(bus.stats.bus_off_recoveries, 1);
     }
 
     #[test]

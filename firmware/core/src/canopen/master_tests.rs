@@ -296,3 +296,77 @@ fn commands_follow_the_state_machine_and_never_jump() {
         "clamped to the limit"
     );
 }
+
+/// The lost-drive reaction frame by frame: target frozen from the third cycle without
+/// feedback, quick stop once lost, then (torque off requested) disable voltage three
+/// times and NMT stop, then silence.
+#[test]
+fn a_lost_drive_gets_frozen_target_quick_stop_disable_then_nmt_stop() {
+    let mut m = Master::new();
+    m.started = true;
+    m.nodes[0].phase = NodePhase::Operational;
+    m.nodes[0].state_known = true;
+    m.nodes[0].power = PowerState::OperationEnabled;
+    let frames = |m: &mut Master| {
+        let mut out = heapless::Vec::<CanFrame, 16>::new();
+        while let Some(f) = m.pop_tx(0) {
+            if f.cob_id() == 0x201 || f.cob_id() == 0x000 {
+                let _ = out.push(f);
+            }
+        }
+        out
+    };
+    let enable = [DriveRequest::Enable; NUM_JOINTS];
+    // One answered cycle at 0.1 rad.
+    m.sync();
+    m.on_frame(
+        0,
+        &CanFrame::new_truncating(
+            0x181,
+            &Tpdo1 {
+                statusword: 0x1637,
+                position: 0,
+            }
+            .encode(),
+        ),
+        0,
+    );
+    m.on_frame(0, &CanFrame::new_truncating(0x281, &[0; 6]), 0);
+    m.send_commands(&enable, &[0.1; NUM_JOINTS]);
+    let sent = Rpdo1::decode(frames(&mut m)[0].payload()).unwrap();
+    assert_eq!(sent.target_position, units::rad_to_increments(0.1));
+    // Then silence: two blind cycles still follow, from the third the target is frozen.
+    let mut targets = heapless::Vec::<i32, 16>::new();
+    for k in 0..4 {
+        m.sync();
+        m.send_commands(&enable, &[0.2 + 0.1 * k as f32; NUM_JOINTS]);
+        let _ = targets.push(
+            Rpdo1::decode(frames(&mut m)[0].payload())
+                .unwrap()
+                .target_position,
+        );
+    }
+    let inc = units::rad_to_increments;
+    assert_eq!(
+        targets.as_slice(),
+        &[inc(0.2), inc(0.3), inc(0.3), inc(0.3)]
+    );
+    // Lost (latched): quick stop with the frozen target.
+    m.fail(0, NodeFault::FeedbackLost);
+    m.send_commands(&enable, &[0.9; NUM_JOINTS]);
+    let r = Rpdo1::decode(frames(&mut m)[0].payload()).unwrap();
+    assert_eq!((r.controlword, r.target_position), (0x0002, inc(0.3)));
+    assert_eq!(m.node(0).lost, LostReaction::QuickStop);
+    // Seated, torque off requested: disable voltage x3, NMT stop, then nothing.
+    let disable = [DriveRequest::Disable; NUM_JOINTS];
+    for _ in 0..LOST_DISABLE_CYCLES {
+        m.send_commands(&disable, &[0.0; NUM_JOINTS]);
+        let r = Rpdo1::decode(frames(&mut m)[0].payload()).unwrap();
+        assert_eq!(r.controlword, 0x0000);
+    }
+    m.send_commands(&disable, &[0.0; NUM_JOINTS]);
+    assert_eq!(frames(&mut m).as_slice(), &[NmtCommand::Stop.frame(1)]);
+    assert_eq!(m.node(0).lost, LostReaction::Stopped);
+    m.send_commands(&disable, &[0.0; NUM_JOINTS]);
+    assert!(frames(&mut m).is_empty());
+}

@@ -64,10 +64,12 @@ fn assert_no_drop(sil: &mut Sil, t_reset: f32, down_s: f32, min_height_m: f32) {
         "sagged to {lowest_while_up} m before the sit-down"
     );
     let sink = trace.max_sink_speed_m_s(t_reset, off.t_s);
-    // The reset of communication puts the drives in Quick stop active, which holds the
-    // actual position: the loaded joints lose their steady-state error once and the body
-    // settles by about 3 cm. After that the sit-down is as slow as any safe sit-down.
-    assert!(sink < 0.3, "sinks at {sink} m/s");
+    // Beyond the drives' consumer heartbeat timeout (500 ms) they quick-stop by themselves
+    // before the new controller comes; a quick stop holds the actual position, so the
+    // loaded joints give way by their following error once and the body settles by about
+    // 3 cm. Drives still following their targets are kept on them: no settling.
+    let limit = if down_s < 0.5 { 0.15 } else { 0.3 };
+    assert!(sink < limit, "sinks at {sink} m/s");
     let sink_later = trace.max_sink_speed_m_s(t_reset + down_s + 0.5, off.t_s);
     assert!(
         sink_later < 0.15,

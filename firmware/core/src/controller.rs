@@ -263,6 +263,7 @@ impl Controller {
         }
 
         let feedback = self.master.feedback();
+        let adopted_rad = self.master.adopted_targets_rad();
         let imu_fresh = self
             .last_imu
             .is_some_and(|s| now_us.saturating_sub(s.timestamp_us) <= self.config.imu_timeout_us)
@@ -273,6 +274,7 @@ impl Controller {
             configuring: self.master.configuring(),
             drives_enabled: self.master.all_enabled(),
             drives_adopted: self.master.any_adopted(),
+            adopted_rad: &adopted_rad,
             drive_fault: self.master.first_fault(),
             q_rad: &feedback.q_rad,
             imu_fresh,

@@ -20,7 +20,7 @@
 //! | tilt beyond the limit | attitude filter | `Faulted` with torque off at once: the robot is falling over and stiff legs only make it worse |
 //! | NaN / inf in observation or action | control step | `SafeSitDown` from the last finite targets |
 //! | deadline overrun | controller timing | `SafeSitDown` |
-//! | controller restart (IWDG, fault reset) with drives holding the body | master: statusword and position read by SDO (and the first TPDO1) before any controlword | drives in Operation enabled or Quick stop active adopted at their positions (quick stop left deliberately: target = actual position, then enable operation), then `SafeSitDown` from the measured joints (`Fault::Restarted`); the reset cause is kept ([`crate::hal::BootInfo`]) |
+//! | controller restart (IWDG, fault reset) with drives holding the body | master: statusword and position read by SDO (and the first TPDO1) before any controlword | drives in Operation enabled or Quick stop active adopted where they hold (a drive in Operation enabled keeps its target: pre-operational and reconfigured without a reset of communication; quick stop left deliberately: target = actual position, then enable operation), then `SafeSitDown` from there (`Fault::Restarted`); the reset cause is kept ([`crate::hal::BootInfo`]) |
 //!
 //! `SafeSitDown` ends in `Faulted` (drives disabled). Faults while `Disabled` latch
 //! `Faulted` directly. Leaving `Faulted` needs the arm switch off, the cause gone and a
@@ -202,6 +202,8 @@ pub struct Inputs<'a> {
     pub drives_enabled: bool,
     /// Some drive had torque on when the controller started (it holds the body).
     pub drives_adopted: bool,
+    /// Where the adopted drives hold their joints (the measured position of the others).
+    pub adopted_rad: &'a [f32; NUM_JOINTS],
     /// The first latched drive fault.
     pub drive_fault: Option<(usize, NodeFault)>,
     /// Measured joint positions, rad.
@@ -351,8 +353,8 @@ impl Supervisor {
                 if i.drives_adopted && !i.configuring {
                     // Drives hold the body after a restart: never disable them under load;
                     // sit down slowly from where the joints are (on the drives that work).
-                    self.from_rad = *i.q_rad;
-                    self.targets_rad = *i.q_rad;
+                    self.from_rad = *i.adopted_rad;
+                    self.targets_rad = *i.adopted_rad;
                     self.mode = Mode::SafeSitDown {
                         since_us: now,
                         fault: Fault::Restarted,
@@ -473,9 +475,9 @@ impl Supervisor {
 
     fn command(&mut self, i: &Inputs, clear_faults: bool) -> Command {
         let (request, targets) = match self.mode {
-            // Drives that hold the body after a restart keep holding (quick stop) until
-            // every drive's state is known; nothing is disabled under load.
-            Mode::Configuring if i.drives_adopted => (DriveRequest::QuickStop, *i.q_rad),
+            // Drives that hold the body after a restart keep holding where they are
+            // commanded until every drive's state is known; nothing is disabled under load.
+            Mode::Configuring if i.drives_adopted => (DriveRequest::Enable, *i.adopted_rad),
             Mode::Boot | Mode::Configuring | Mode::Disabled => (DriveRequest::Disable, *i.q_rad),
             Mode::Faulted { .. } if clear_faults => (DriveRequest::FaultReset, *i.q_rad),
             Mode::Faulted { .. } => (DriveRequest::Disable, *i.q_rad),

@@ -55,6 +55,7 @@ impl World {
             configuring: self.configuring,
             drives_enabled: self.enabled,
             drives_adopted: false,
+            adopted_rad: &q,
             drive_fault: self.drive_fault,
             q_rad: &q,
             imu_fresh: self.imu_fresh,

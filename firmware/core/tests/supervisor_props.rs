@@ -93,6 +93,7 @@ proptest! {
                     configuring: now_us < 100_000,
                     drives_enabled: enabled,
                     drives_adopted: false,
+                    adopted_rad: &q,
                     drive_fault: latched_fault,
                     q_rad: &q,
                     imu_fresh: e.imu_fresh,

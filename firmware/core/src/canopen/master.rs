@@ -4,9 +4,11 @@
 //! - [`Master::start`] first learns each node's state without touching it: SDO uploads of
 //!   the statusword (0x6041) and the position (0x6064). A drive found in Operation enabled
 //!   or Quick stop active is holding the body (the controller was reset, the drives were
-//!   not): it is *adopted* ([`NodeState::adopted`]). Then each node's communication is
-//!   reset (NMT 0x82; with 0x6007 = quick stop an enabled drive holds in Quick stop
-//!   active meanwhile) and the master waits for its boot-up;
+//!   not): it is *adopted* ([`NodeState::adopted`]); for one in Operation enabled its
+//!   target (0x607A) is read as well. Then each node's communication is reset (NMT 0x82)
+//!   and the master waits for its boot-up, except for a drive in Operation enabled: it is
+//!   sent to pre-operational (NMT 0x80) and configured at once, so that it keeps following
+//!   its target (a reset of communication would make it quick-stop on its actual position);
 //! - each booted node runs the [`drive_config`](super::drive_config) SDO script, then gets NMT start;
 //! - [`Master::sync`] begins a control cycle (SYNC on both buses), the drives answer with
 //!   TPDO1/TPDO2, [`Master::feedback_complete`] tells when all arrived, and
@@ -218,6 +220,8 @@ pub struct NodeState {
     pub adopted: bool,
     /// Statusword found by the probe before the boot, if the node answered.
     pub probed_statusword: Option<u16>,
+    /// Where an adopted drive holds its joint (its target, or its position), rad.
+    pub adopted_target_rad: f32,
     /// A TPDO1 arrived since the node became operational: its state is known.
     pub state_known: bool,
     commanded: bool,
@@ -247,6 +251,7 @@ impl NodeState {
             lost: LostReaction::None,
             adopted: false,
             probed_statusword: None,
+            adopted_target_rad: f32::NAN,
             state_known: false,
             commanded: false,
             quick_stop_hold_sent: false,
@@ -377,10 +382,10 @@ impl Master {
         let NodePhase::Probing { step, .. } = node.phase else {
             return;
         };
-        let address = if step == 0 {
-            od::STATUSWORD
-        } else {
-            od::POSITION_ACTUAL
+        let address = match step {
+            0 => od::STATUSWORD,
+            1 => od::POSITION_ACTUAL,
+            _ => od::TARGET_POSITION,
         };
         if let Some(frame) =
             node.sdo
@@ -394,6 +399,22 @@ impl Master {
     fn begin_boot(&mut self, joint: usize, now_us: u64) {
         let node = &mut self.nodes[joint];
         node.sdo.cancel();
+        if node.adopted && node.power == PowerState::OperationEnabled {
+            // Holding the body and following its last target: no reset of communication
+            // (CiA 402 makes that a communication abort, a quick stop that holds the actual
+            // position and lets the loaded joint give way by its following error). Back to
+            // pre-operational (PDOs stop, the drive keeps its target) and configure again.
+            node.phase = NodePhase::Configuring {
+                step: 0,
+                retries: 0,
+            };
+            self.push(
+                can_bus(joint),
+                NmtCommand::EnterPreOperational.frame(can_node_id(joint)),
+            );
+            self.next_sdo(joint, now_us);
+            return;
+        }
         node.phase = NodePhase::Booting {
             since_us: now_us,
             attempts: 1,
@@ -402,6 +423,21 @@ impl Master {
             can_bus(joint),
             NmtCommand::ResetCommunication.frame(can_node_id(joint)),
         );
+    }
+
+    /// Where the adopted drives hold the body: their target for a drive found following
+    /// one (Operation enabled), their position otherwise; the measured position for drives
+    /// not adopted.
+    pub fn adopted_targets_rad(&self) -> [f32; NUM_JOINTS] {
+        let mut out = [0.0; NUM_JOINTS];
+        for (o, n) in out.iter_mut().zip(&self.nodes) {
+            *o = if n.adopted && n.adopted_target_rad.is_finite() {
+                n.adopted_target_rad
+            } else {
+                n.q_rad
+            };
+        }
+        out
     }
 
     /// True when some drive was holding the body when the master started (adopted).
@@ -693,6 +729,24 @@ impl Master {
             }
             SdoOutcome::Read(address, value, _) if address == od::POSITION_ACTUAL => {
                 node.q_rad = units::increments_to_rad(value as i32);
+                node.adopted_target_rad = node.q_rad;
+                if node.power == PowerState::OperationEnabled {
+                    // Following a target: read it, to keep it.
+                    node.phase = NodePhase::Probing {
+                        step: 2,
+                        attempts: 1,
+                    };
+                    self.probe_request(joint, now_us);
+                } else {
+                    self.begin_boot(joint, now_us);
+                }
+            }
+            SdoOutcome::Read(address, value, _) if address == od::TARGET_POSITION => {
+                let target = units::increments_to_rad(value as i32);
+                // The target it follows, if plausible (within 0.2 rad of where it is).
+                if (target - node.q_rad).abs() < 0.2 {
+                    node.adopted_target_rad = target;
+                }
                 self.begin_boot(joint, now_us);
             }
             // Aborted (no such object) or anything else: boot without knowing.
@@ -763,8 +817,10 @@ impl Master {
             if matches!(
                 node.power,
                 PowerState::OperationEnabled | PowerState::QuickStopActive
-            ) {
+            ) && !node.adopted
+            {
                 node.adopted = true;
+                node.adopted_target_rad = node.q_rad;
             }
         }
         self.check_feedback(joint);

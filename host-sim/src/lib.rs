@@ -6,6 +6,7 @@
 #![warn(missing_docs)]
 
 pub mod bench;
+pub mod clearance;
 pub mod config;
 pub mod course;
 pub mod curriculum;

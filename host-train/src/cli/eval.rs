@@ -1,7 +1,8 @@
 //! `hexapod eval`: tracking at fixed commands (error, mean velocity, speed error), fall
 //! rate under the environment's random pushes, a tripod score (fraction of time the stance
 //! set is exactly one of the two tripods), and a push test (0.5 m/s shoves every 4 s for a
-//! 20 s episode), for a checkpoint.
+//! 20 s episode), for a checkpoint. `--suite paper` runs the paper's experiments instead,
+//! for one or several checkpoints ([`crate::cli::suite`]).
 
 use crate::checkpoint::load_for_inference;
 use crate::cli::play::set_command;
@@ -27,18 +28,36 @@ pub const EVAL_COMMANDS: [[f32; 3]; 6] =
 /// Arguments of `hexapod eval`.
 #[derive(Args, Debug)]
 pub struct EvalArgs {
-    /// Checkpoint directory.
-    #[arg(long)]
-    pub checkpoint: PathBuf,
+    /// Checkpoint directory (with `--suite`, repeat it to compare controllers side by side).
+    #[arg(long, required = true)]
+    pub checkpoint: Vec<PathBuf>,
     /// Robots per command.
     #[arg(long, default_value_t = 16)]
     pub num_envs: usize,
     /// Policy steps per command (50 per second).
     #[arg(long, default_value_t = 500)]
     pub steps: usize,
-    /// Report file (default `<checkpoint>/eval.json`).
+    /// Report file (default `<checkpoint>/eval.json`); with `--suite`, the report's
+    /// directory (required).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Run a suite of experiments instead (`paper`: the paper's Table III, Fig. 3, 4, 5 and
+    /// the outdoor step) and write its report (JSON, Markdown, plots) into `--out`.
+    #[arg(long, requires = "out")]
+    pub suite: Option<String>,
+    /// The suite's protocols to run, comma-separated (default all: push, terrain, step,
+    /// sine, curriculum).
+    #[arg(long, value_delimiter = ',', requires = "suite")]
+    pub protocol: Vec<String>,
+    /// The suite's quick variant (2 trials, one feature per terrain kind, one bisection round).
+    #[arg(long, requires = "suite")]
+    pub quick: bool,
+    /// Trials (robots) per test point of the suite (default 10; quick 2).
+    #[arg(long, requires = "suite")]
+    pub trials: Option<usize>,
+    /// Seed of the suite.
+    #[arg(long, default_value_t = 1, requires = "suite")]
+    pub seed: u64,
     /// Environment override (`sim` or `fake`).
     #[arg(long, value_parser = ["sim", "fake"])]
     pub env: Option<String>,
@@ -206,7 +225,22 @@ pub fn contact_mask(privileged: &[f32]) -> u8 {
 
 /// Runs `hexapod eval`.
 pub fn run(args: EvalArgs) -> anyhow::Result<()> {
-    let (mut cfg, mut ppo) = load_for_inference(&args.checkpoint)?;
+    if let Some(suite) = &args.suite {
+        return crate::cli::suite::run(&crate::cli::suite::SuiteOptions {
+            suite: suite.clone(),
+            checkpoints: args.checkpoint.clone(),
+            out: args.out.clone().expect("clap requires --out with --suite"),
+            protocols: args.protocol.clone(),
+            quick: args.quick,
+            trials: args.trials,
+            seed: args.seed,
+        });
+    }
+    let [checkpoint] = args.checkpoint.as_slice() else {
+        anyhow::bail!("give one --checkpoint (several are compared only with --suite)");
+    };
+    let checkpoint = checkpoint.clone();
+    let (mut cfg, mut ppo) = load_for_inference(&checkpoint)?;
     cfg.env.num_envs = args.num_envs;
     if let Some(kind) = &args.env {
         cfg.env.kind = if kind == "fake" { EnvKind::Fake } else { EnvKind::Sim };
@@ -281,7 +315,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let report = EvalReport {
         push_test: push,
         terrain_test: terrain,
-        checkpoint: args.checkpoint.display().to_string(),
+        checkpoint: checkpoint.display().to_string(),
         env: format!("{:?}", cfg.env.kind).to_lowercase(),
         num_envs: n,
         steps: args.steps,
@@ -320,7 +354,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         "mean: lin err {:.3} m/s, fall rate {:.2}, tripod score {:.2}, estimator error {:.3} m/s",
         report.mean_lin_vel_error_m_s, report.mean_fall_rate, report.mean_tripod_score, report.estimator_error_m_s
     );
-    let out = args.out.clone().unwrap_or_else(|| args.checkpoint.join("eval.json"));
+    let out = args.out.clone().unwrap_or_else(|| checkpoint.join("eval.json"));
     std::fs::write(&out, serde_json::to_string_pretty(&report)?).with_context(|| format!("writing {}", out.display()))?;
     eprintln!("report: {}", out.display());
     Ok(())

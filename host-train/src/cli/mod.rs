@@ -6,5 +6,6 @@ pub mod plot;
 pub mod pretrain;
 pub mod priors;
 pub mod replay;
+pub mod suite;
 pub mod terrain_test;
 pub mod train;

@@ -1,0 +1,188 @@
+//! What every protocol of the suite shares: the simulator settings it runs under (recorded
+//! in the report), the seeds that give trial k the same robot in every test, and the loop
+//! that drives a batch of robots with a policy at per-robot commands.
+
+use crate::algo::ppo::Ppo;
+use crate::config::TrainConfig;
+use hexapod_core::obs::{ACTOR_COMMAND, ACTOR_OBS_DIM, COMMAND_SCALE};
+use hexapod_core::timing::POLICY_DT_S;
+use host_sim::config::{EnvConfig, RandomizationConfig};
+use host_sim::env::HexapodEnv;
+use host_sim::frames::{rotate_inverse, yaw_rad};
+use host_sim::robot::RobotState;
+use host_sim::vec_env::{StepResult, VecEnv};
+use serde::Serialize;
+
+/// Foot friction the suite draws from, instead of the training range's [0.1, 2.5]: below
+/// tan 30 deg = 0.58 no legged robot stands on the 30 deg ramp, so the slope test would
+/// measure the friction draw, not the policy. Both ends are the training range's inner part.
+pub const SUITE_FRICTION: [f32; 2] = [0.6, 1.2];
+
+/// The conditions every protocol runs under, as the report records them.
+#[derive(Clone, Debug, Serialize)]
+pub struct Conditions {
+    /// Seed of the suite; trial k of every test uses robot seed `trial_seed(seed, k)`.
+    pub seed: u64,
+    /// Trials (robots) per test point.
+    pub trials: usize,
+    /// The reduced variant (CI).
+    pub quick: bool,
+    /// Domain randomization per robot (the checkpoint's ranges, friction narrowed).
+    pub randomization: RandomizationConfig,
+    /// Observation noise on the actor's inputs (the checkpoint's setting).
+    pub observation_noise: bool,
+    /// Termination of the simulator ("current" rule): trunk contact or tilt beyond this, deg.
+    pub max_tilt_deg: f32,
+    /// Random pushes of the training environment (off: the push protocol applies its own).
+    pub random_pushes: bool,
+    /// Actions: the policy's mean (deterministic), not samples.
+    pub deterministic_policy: bool,
+}
+
+impl Conditions {
+    /// The suite's conditions for a checkpoint's config.
+    pub fn new(cfg: &TrainConfig, seed: u64, trials: usize, quick: bool) -> Self {
+        let sim = cfg.resolved_sim();
+        let mut randomization = sim.randomization.clone();
+        randomization.friction = SUITE_FRICTION;
+        Self {
+            seed,
+            trials,
+            quick,
+            randomization,
+            observation_noise: sim.observation_noise,
+            max_tilt_deg: sim.max_tilt_deg,
+            random_pushes: false,
+            deterministic_policy: true,
+        }
+    }
+
+    /// Simulator config for `num_envs` robots running `duration_s` without a time-out, on
+    /// flat ground, without the curriculum or the environment's own pushes.
+    pub fn sim_config(&self, cfg: &TrainConfig, num_envs: usize, duration_s: f32) -> EnvConfig {
+        let mut sim = cfg.resolved_sim();
+        sim.num_envs = num_envs;
+        sim.seed = self.seed;
+        sim.curriculum = false;
+        sim.push.enabled = self.random_pushes;
+        sim.episode_length_s = duration_s + 1.0;
+        sim.randomization = self.randomization.clone();
+        sim.observation_noise = self.observation_noise;
+        sim.terrain = host_sim::terrain::TerrainConfig::default();
+        sim
+    }
+
+    /// Robots needed by `points` test points of `trials` each.
+    pub fn robots(&self, points: usize) -> usize {
+        points * self.trials
+    }
+
+    /// At least this many of `trials` robots must survive: 9 of 10 (90 %, rounded up).
+    pub fn survivors_needed(&self) -> usize {
+        (self.trials * 9).div_ceil(10)
+    }
+}
+
+/// Seed of trial `k`'s robot: the same dynamics in every test and at every magnitude.
+pub fn trial_seed(seed: u64, k: usize) -> u64 {
+    seed.wrapping_mul(0x2545_F491_4F6C_DD1D).wrapping_add(0x9E37 + k as u64)
+}
+
+/// Policy steps in `s` seconds.
+pub fn steps(s: f32) -> usize {
+    (s / POLICY_DT_S).round() as usize
+}
+
+/// Writes each robot's command into its actor observation row.
+pub fn set_commands(actor: &mut [f32], commands: &[[f32; 3]]) {
+    for (row, c) in actor.chunks_exact_mut(ACTOR_OBS_DIM).zip(commands) {
+        for k in 0..3 {
+            row[ACTOR_COMMAND.start + k] = c[k] * COMMAND_SCALE[k];
+        }
+    }
+}
+
+/// Runs `steps` policy steps. Before each step `before(step, env, commands)` may push
+/// robots and set each robot's command; after it `after(step, env, result)` reads the
+/// outcome (a robot whose episode ended is already reset in `env`).
+pub fn drive(
+    env: &mut HexapodEnv,
+    ppo: &mut Ppo,
+    steps: usize,
+    mut before: impl FnMut(usize, &mut HexapodEnv, &mut [[f32; 3]]),
+    mut after: impl FnMut(usize, &HexapodEnv, &StepResult),
+) -> anyhow::Result<()> {
+    let n = env.num_envs();
+    let mut commands = vec![[0.0f32; 3]; n];
+    let mut obs = env.reset();
+    for step in 0..steps {
+        before(step, env, &mut commands);
+        for (i, c) in commands.iter().enumerate() {
+            env.set_command(i, *c);
+        }
+        set_commands(&mut obs.actor, &commands);
+        let act = ppo.act(&obs, true)?;
+        let res = env.step(&act.actions);
+        after(step, env, &res);
+        obs = res.obs;
+    }
+    Ok(())
+}
+
+/// Reseeds robot `i` as trial `i % trials` and resets nothing else (call before `drive`).
+pub fn seed_trials(env: &mut HexapodEnv, c: &Conditions) {
+    for i in 0..env.num_envs() {
+        env.reseed(i, trial_seed(c.seed, i % c.trials));
+    }
+}
+
+/// Base velocity in the heading frame (x forward, y left, z up; not tilted with the base), m/s.
+pub fn heading_velocity_m_s(s: &RobotState) -> [f32; 3] {
+    let yaw = yaw_rad(s.base_quat_xyzw);
+    rotate_inverse(host_sim::frames::quat_from_yaw(yaw), s.base_lin_vel_world_m_s)
+}
+
+/// Roll and pitch of the base, rad (z-y-x Euler angles).
+pub fn roll_pitch_rad(s: &RobotState) -> (f32, f32) {
+    let [x, y, z, w] = s.base_quat_xyzw;
+    let roll = (2.0 * (w * x + y * z)).atan2(1.0 - 2.0 * (x * x + y * y));
+    let pitch = (2.0 * (w * y - z * x)).clamp(-1.0, 1.0).asin();
+    (roll, pitch)
+}
+
+/// Angle between the base's z axis and the vertical, rad.
+pub fn tilt_rad(s: &RobotState) -> f32 {
+    let [x, y, _, _] = s.base_quat_xyzw;
+    (1.0 - 2.0 * (x * x + y * y)).clamp(-1.0, 1.0).acos()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use host_sim::frames::quat_from_yaw;
+
+    #[test]
+    fn nine_of_ten() {
+        let mut c = Conditions::new(&TrainConfig::default(), 1, 10, false);
+        assert_eq!(c.survivors_needed(), 9);
+        c.trials = 2;
+        assert_eq!(c.survivors_needed(), 2);
+        c.trials = 1;
+        assert_eq!(c.survivors_needed(), 1);
+    }
+
+    #[test]
+    fn frames() {
+        let mut s = RobotState { base_quat_xyzw: quat_from_yaw(1.0), ..Default::default() };
+        s.base_lin_vel_world_m_s = [1.0f32.cos(), 1.0f32.sin(), 0.2];
+        let v = heading_velocity_m_s(&s);
+        assert!((v[0] - 1.0).abs() < 1e-5 && v[1].abs() < 1e-5 && (v[2] - 0.2).abs() < 1e-6);
+        assert!(tilt_rad(&s) < 1e-3);
+        // 20 deg roll about x.
+        let h = 10f32.to_radians();
+        s.base_quat_xyzw = [h.sin(), 0.0, 0.0, h.cos()];
+        let (roll, pitch) = roll_pitch_rad(&s);
+        assert!((roll.to_degrees() - 20.0).abs() < 1e-3 && pitch.abs() < 1e-5);
+        assert!((tilt_rad(&s).to_degrees() - 20.0).abs() < 1e-2);
+    }
+}

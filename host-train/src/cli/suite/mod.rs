@@ -1,0 +1,291 @@
+//! `hexapod eval --suite paper`: the paper's experiments as one reproducible report, for one
+//! or several checkpoints side by side. Protocols: `push` (velocity-disturbance tolerance,
+//! Table III), `terrain` (stairs and slopes, Fig. 5), `step` (the outdoor 15 cm step),
+//! `sine` (sinusoidal commands, Fig. 3), `curriculum` (terrain row over training, Fig. 4).
+//!
+//! Every checkpoint is loaded and checked before anything runs; the report (JSON, Markdown,
+//! PNG plots) is written to a temporary directory and moved into place only when every
+//! protocol finished for every checkpoint, so a failed run leaves no partial report.
+
+pub mod batch;
+pub mod curriculum;
+pub mod plots;
+pub mod push;
+pub mod report;
+pub mod sine;
+pub mod terrain;
+
+use crate::checkpoint::{load_for_inference, load_iteration};
+use crate::config::{EnvKind, TrainConfig};
+use crate::algo::ppo::Ppo;
+use anyhow::{bail, Context};
+use batch::Conditions;
+use report::{ControllerReport, SuiteReport};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Suites known.
+pub const SUITES: [&str; 1] = ["paper"];
+/// Protocols of the paper suite, in the order they run.
+pub const PROTOCOLS: [&str; 5] = ["push", "terrain", "step", "sine", "curriculum"];
+/// Trials per test point (the paper: 10).
+pub const TRIALS: usize = 10;
+/// Trials per test point in the quick variant.
+pub const QUICK_TRIALS: usize = 2;
+/// Bisection of the push protocol: rounds and magnitudes per bracket per round.
+pub const PUSH_SEARCH: (usize, usize) = (3, 3);
+/// The quick variant's push search.
+pub const QUICK_PUSH_SEARCH: (usize, usize) = (1, 1);
+
+/// What `hexapod eval --suite` was asked for.
+#[derive(Clone, Debug)]
+pub struct SuiteOptions {
+    /// Suite name.
+    pub suite: String,
+    /// Checkpoint directories, one controller each.
+    pub checkpoints: Vec<PathBuf>,
+    /// Output directory.
+    pub out: PathBuf,
+    /// Protocols to run (empty: all).
+    pub protocols: Vec<String>,
+    /// The reduced variant.
+    pub quick: bool,
+    /// Trials per test point (default 10, quick 2).
+    pub trials: Option<usize>,
+    /// Seed.
+    pub seed: u64,
+}
+
+/// Checks the options; returns the protocols to run, in run order.
+pub fn validate(o: &SuiteOptions) -> anyhow::Result<Vec<&'static str>> {
+    if !SUITES.contains(&o.suite.as_str()) {
+        bail!("unknown suite `{}` (known: {})", o.suite, SUITES.join(", "));
+    }
+    for p in &o.protocols {
+        if !PROTOCOLS.contains(&p.as_str()) {
+            bail!("unknown protocol `{p}` (the {} suite has: {})", o.suite, PROTOCOLS.join(", "));
+        }
+    }
+    if o.trials == Some(0) {
+        bail!("--trials must be at least 1");
+    }
+    if o.checkpoints.is_empty() {
+        bail!("give at least one --checkpoint");
+    }
+    Ok(PROTOCOLS.iter().copied().filter(|p| o.protocols.is_empty() || o.protocols.iter().any(|q| q == p)).collect())
+}
+
+/// A short name for a checkpoint: its directory, with the run's for `<run>/checkpoints/model_N`.
+pub fn controller_name(checkpoint: &Path) -> String {
+    let leaf = checkpoint.file_name().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| checkpoint.display().to_string());
+    if leaf.starts_with("model_") {
+        if let Some(run) = checkpoint.parent().and_then(|p| p.parent()).and_then(|p| p.file_name()) {
+            return format!("{}/{leaf}", run.to_string_lossy());
+        }
+    }
+    leaf
+}
+
+fn trained_on(cfg: &TrainConfig) -> String {
+    let t = cfg.resolved_sim().terrain;
+    if t.tiles {
+        format!(
+            "tile grid, {} rows (hardest: {:.0} deg, {:.2} m stairs)",
+            t.rows, t.max_slope_deg, t.max_step_height_m
+        )
+    } else {
+        "flat ground".into()
+    }
+}
+
+struct Controller {
+    name: String,
+    checkpoint: PathBuf,
+    cfg: TrainConfig,
+    ppo: Ppo,
+}
+
+/// Runs the suite and writes the report into `o.out`.
+pub fn run(o: &SuiteOptions) -> anyhow::Result<()> {
+    let protocols = validate(o)?;
+    let trials = o.trials.unwrap_or(if o.quick { QUICK_TRIALS } else { TRIALS });
+    let mut controllers = Vec::new();
+    for dir in &o.checkpoints {
+        if !dir.is_dir() {
+            bail!("checkpoint {}: no such directory", dir.display());
+        }
+        let (cfg, ppo) = load_for_inference(dir).with_context(|| format!("checkpoint {}", dir.display()))?;
+        if cfg.env.kind != EnvKind::Sim {
+            bail!("checkpoint {}: trained on the `{:?}` stand-in; the suite needs a simulator policy", dir.display(), cfg.env.kind);
+        }
+        let mut name = controller_name(dir);
+        let same = controllers.iter().filter(|c: &&Controller| c.name == name || c.name.starts_with(&format!("{name} #"))).count();
+        if same > 0 {
+            name = format!("{name} #{}", same + 1);
+        }
+        controllers.push(Controller { name, checkpoint: dir.clone(), cfg, ppo });
+    }
+    let (rounds, k) = if o.quick { QUICK_PUSH_SEARCH } else { PUSH_SEARCH };
+    let mut reports = Vec::new();
+    for c in &mut controllers {
+        let conditions = Conditions::new(&c.cfg, o.seed, trials, o.quick);
+        let mut r = ControllerReport {
+            name: c.name.clone(),
+            checkpoint: c.checkpoint.display().to_string(),
+            iteration: load_iteration(&c.checkpoint).ok(),
+            trained_on: trained_on(&c.cfg),
+            conditions: conditions.clone(),
+            push: None,
+            terrain: None,
+            sine: None,
+            curriculum: None,
+            wall_clock_s: BTreeMap::new(),
+        };
+        let time = |r: &mut ControllerReport, name: &str, t: Instant| {
+            let s = t.elapsed().as_secs_f64();
+            eprintln!("{}: {name} done in {s:.0} s", r.name);
+            r.wall_clock_s.insert(name.to_string(), s);
+        };
+        if protocols.contains(&"push") {
+            let t = Instant::now();
+            r.push = Some(push::run(&c.cfg, &mut c.ppo, &conditions, rounds, k)?);
+            time(&mut r, "push", t);
+        }
+        let (with_terrain, with_step) = (protocols.contains(&"terrain"), protocols.contains(&"step"));
+        if with_terrain || with_step {
+            let t = Instant::now();
+            r.terrain = Some(terrain::run(&c.cfg, &mut c.ppo, &conditions, with_terrain, with_step)?);
+            let label = match (with_terrain, with_step) {
+                (true, true) => "terrain + step",
+                (true, false) => "terrain",
+                _ => "step",
+            };
+            time(&mut r, label, t);
+        }
+        if protocols.contains(&"sine") {
+            let t = Instant::now();
+            r.sine = Some(sine::run(&c.cfg, &mut c.ppo, &conditions)?);
+            time(&mut r, "sine", t);
+        }
+        if protocols.contains(&"curriculum") {
+            let rows = if c.cfg.resolved_sim().terrain.tiles { c.cfg.resolved_sim().terrain.rows } else { 0 };
+            r.curriculum = Some(curriculum::run(&c.checkpoint, rows)?);
+        }
+        reports.push(r);
+    }
+    write(o, &protocols, reports)
+}
+
+fn command_line() -> String {
+    let mut args: Vec<String> = std::env::args().collect();
+    if let Some(first) = args.first_mut() {
+        *first = "hexapod".into();
+    }
+    args.join(" ")
+}
+
+/// Writes the report into a temporary directory beside `o.out`, then moves its files in.
+fn write(o: &SuiteOptions, protocols: &[&str], controllers: Vec<ControllerReport>) -> anyhow::Result<()> {
+    std::fs::create_dir_all(&o.out).with_context(|| format!("creating {}", o.out.display()))?;
+    let tmp = o.out.join(format!(".suite-partial-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    std::fs::create_dir_all(tmp.join("plots")).with_context(|| format!("creating {}", tmp.display()))?;
+    let result = (|| -> anyhow::Result<SuiteReport> {
+        let plots = plots::draw_all(&tmp.join("plots"), &controllers).map_err(anyhow::Error::msg).context("drawing the plots")?;
+        let report = SuiteReport {
+            suite: o.suite.clone(),
+            command: command_line(),
+            protocols: protocols.iter().map(|p| p.to_string()).collect(),
+            complete: true,
+            plots: plots.iter().filter_map(|p| p.file_name()).map(|f| format!("plots/{}", f.to_string_lossy())).collect(),
+            controllers,
+        };
+        std::fs::write(tmp.join("report.json"), serde_json::to_string_pretty(&report)?)?;
+        std::fs::write(tmp.join("report.md"), report.markdown())?;
+        Ok(report)
+    })();
+    let report = match result {
+        Ok(r) => r,
+        Err(e) => {
+            let _ = std::fs::remove_dir_all(&tmp);
+            return Err(e);
+        }
+    };
+    std::fs::create_dir_all(o.out.join("plots"))?;
+    for p in &report.plots {
+        std::fs::rename(tmp.join(p), o.out.join(p)).with_context(|| format!("moving {p} into {}", o.out.display()))?;
+    }
+    for f in ["report.json", "report.md"] {
+        std::fs::rename(tmp.join(f), o.out.join(f)).with_context(|| format!("moving {f} into {}", o.out.display()))?;
+    }
+    let _ = std::fs::remove_dir_all(&tmp);
+    println!("{}", report.markdown());
+    eprintln!("report: {}", o.out.join("report.md").display());
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn opts() -> SuiteOptions {
+        SuiteOptions {
+            suite: "paper".into(),
+            checkpoints: vec![PathBuf::from("assets/policies/flat-tripod")],
+            out: PathBuf::from("/tmp/x"),
+            protocols: Vec::new(),
+            quick: true,
+            trials: None,
+            seed: 1,
+        }
+    }
+
+    #[test]
+    fn bad_input_is_named() {
+        let mut o = opts();
+        o.suite = "papr".into();
+        assert!(validate(&o).unwrap_err().to_string().contains("unknown suite `papr`"));
+        let mut o = opts();
+        o.protocols = vec!["push".into(), "stairs".into()];
+        let e = validate(&o).unwrap_err().to_string();
+        assert!(e.contains("unknown protocol `stairs`") && e.contains("terrain"), "{e}");
+        let mut o = opts();
+        o.trials = Some(0);
+        assert!(validate(&o).unwrap_err().to_string().contains("--trials"));
+        let mut o = opts();
+        o.protocols = vec!["sine".into(), "push".into()];
+        assert_eq!(validate(&o).unwrap(), vec!["push", "sine"]);
+    }
+
+    #[test]
+    fn a_missing_or_mismatched_checkpoint_fails_before_any_report() {
+        let out = std::env::temp_dir().join(format!("hexapod-suite-bad-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&out);
+        let mut o = opts();
+        o.out = out.clone();
+        o.checkpoints = vec![PathBuf::from("../assets/policies/flat-tripod"), PathBuf::from("no/such/checkpoint")];
+        let e = format!("{:#}", run(&o).unwrap_err());
+        assert!(e.contains("no/such/checkpoint") && e.contains("no such directory"), "{e}");
+        assert!(!out.exists(), "nothing is written for a bad checkpoint");
+        // The flat policy's weights under a config with another actor.
+        let ckpt = out.with_extension("ckpt");
+        std::fs::create_dir_all(&ckpt).unwrap();
+        std::fs::copy("../assets/policies/flat-tripod/policy.safetensors", ckpt.join("policy.safetensors")).unwrap();
+        let config = std::fs::read_to_string("../assets/policies/flat-tripod/config.toml").unwrap();
+        let changed = config.replace("actor_hidden = [\n    256,", "actor_hidden = [\n    200,");
+        assert_ne!(config, changed);
+        std::fs::write(ckpt.join("config.toml"), changed).unwrap();
+        o.checkpoints = vec![ckpt.clone()];
+        let e = format!("{:#}", run(&o).unwrap_err());
+        assert!(e.contains("actor.layers.0") && e.contains("200"), "{e}");
+        assert!(!out.exists());
+        std::fs::remove_dir_all(&ckpt).unwrap();
+    }
+
+    #[test]
+    fn names_come_from_the_directory() {
+        assert_eq!(controller_name(Path::new("assets/policies/rough-climb")), "rough-climb");
+        assert_eq!(controller_name(Path::new("target/ci-pretrain-ppo/checkpoints/model_000001")), "ci-pretrain-ppo/model_000001");
+    }
+}

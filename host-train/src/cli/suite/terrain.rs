@@ -1,0 +1,153 @@
+//! Terrain success (the paper's Fig. 5) and the outdoor step: robots start on the evaluation
+//! course ([`host_sim::course`]) 1 m before a feature, facing it, and walk at a fixed
+//! forward command for 10 s. Success: no fall (the simulator's termination) and at least
+//! 2 m along the command, measured from the start to where the base is at the end.
+
+use super::batch::{drive, seed_trials, steps, Conditions};
+use crate::algo::ppo::Ppo;
+use crate::config::TrainConfig;
+use host_sim::course::{Course, Feature};
+use host_sim::env::HexapodEnv;
+use serde::Serialize;
+
+/// Stair risers tested, m (the paper: 3 to 20 cm).
+pub const STEP_HEIGHTS_M: [f32; 8] = [0.03, 0.05, 0.08, 0.10, 0.13, 0.15, 0.17, 0.20];
+/// Slopes tested, deg (the paper: 5 to 30 deg).
+pub const SLOPES_DEG: [f32; 6] = [5.0, 10.0, 15.0, 20.0, 25.0, 30.0];
+/// The quick variant's features: one per kind, mid-range.
+pub const QUICK_STEP_M: f32 = 0.10;
+/// The quick variant's slope, deg.
+pub const QUICK_SLOPE_DEG: f32 = 15.0;
+/// Command of the terrain test (vx, vy, wz).
+pub const TERRAIN_COMMAND: [f32; 3] = [0.3, 0.0, 0.0];
+/// Length of each trial, s.
+pub const DURATION_S: f32 = 10.0;
+/// Distance along the command a successful trial covers, m.
+pub const SUCCESS_DISTANCE_M: f32 = 2.0;
+/// The outdoor step (the paper's flower bed): height, m.
+pub const OUTDOOR_STEP_M: f32 = 0.15;
+/// The outdoor step's command (vx, vy, wz).
+pub const OUTDOOR_COMMAND: [f32; 3] = [0.5, 0.0, 0.0];
+
+/// One feature's trials.
+#[derive(Clone, Debug, Serialize)]
+pub struct FeatureResult {
+    /// The feature.
+    pub feature: Feature,
+    /// In words.
+    pub name: String,
+    /// Command (vx, vy, wz).
+    pub command: [f32; 3],
+    /// Trials.
+    pub trials: usize,
+    /// Successful trials.
+    pub successes: usize,
+    /// Trials that fell.
+    pub falls: usize,
+    /// Mean distance along the command at the end (at the fall for those that fell), m.
+    pub mean_distance_m: f64,
+}
+
+impl FeatureResult {
+    /// Successes / trials.
+    pub fn success_rate(&self) -> f64 {
+        self.successes as f64 / self.trials.max(1) as f64
+    }
+}
+
+/// The protocol's results.
+#[derive(Clone, Debug, Serialize)]
+pub struct TerrainResult {
+    /// Length of each trial, s.
+    pub duration_s: f32,
+    /// Distance needed for a success, m.
+    pub success_distance_m: f32,
+    /// From the start pose to the feature's first edge, m.
+    pub run_up_m: f32,
+    /// Stairs and slopes, up and down.
+    pub features: Vec<FeatureResult>,
+    /// The outdoor step (`None` when the protocol was not selected).
+    pub outdoor_step: Option<FeatureResult>,
+}
+
+/// The features of the terrain protocol, in report order.
+pub fn features(quick: bool) -> Vec<Feature> {
+    let (steps_m, slopes): (Vec<f32>, Vec<f32>) =
+        if quick { (vec![QUICK_STEP_M], vec![QUICK_SLOPE_DEG]) } else { (STEP_HEIGHTS_M.to_vec(), SLOPES_DEG.to_vec()) };
+    let mut f: Vec<Feature> = Vec::new();
+    f.extend(steps_m.iter().map(|&h| Feature::StairsUp { step_height_m: h }));
+    f.extend(steps_m.iter().map(|&h| Feature::StairsDown { step_height_m: h }));
+    f.extend(slopes.iter().map(|&d| Feature::SlopeUp { slope_deg: d }));
+    f.extend(slopes.iter().map(|&d| Feature::SlopeDown { slope_deg: d }));
+    f
+}
+
+/// Runs the terrain features (`terrain`) and the outdoor step (`step`) in one batch.
+pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions, terrain: bool, step: bool) -> anyhow::Result<TerrainResult> {
+    let mut lanes: Vec<(Feature, [f32; 3])> = Vec::new();
+    if terrain {
+        lanes.extend(features(c.quick).into_iter().map(|f| (f, TERRAIN_COMMAND)));
+    }
+    if step {
+        lanes.push((Feature::Step { height_m: OUTDOOR_STEP_M }, OUTDOOR_COMMAND));
+    }
+    let course = Course::new(&lanes.iter().map(|l| l.0).collect::<Vec<_>>());
+    let n = c.robots(lanes.len());
+    let mut env = HexapodEnv::with_terrain(c.sim_config(cfg, n, DURATION_S), course.terrain().clone())?;
+    seed_trials(&mut env, c);
+    let lane_of = |i: usize| i / c.trials;
+    for i in 0..n {
+        env.set_spawn_pose(i, Some(course.start_pose(lane_of(i))));
+    }
+    let mut fell = vec![false; n];
+    let mut distance_m = vec![0.0f32; n];
+    drive(
+        &mut env,
+        ppo,
+        steps(DURATION_S),
+        |_, _, commands| {
+            for (i, cmd) in commands.iter_mut().enumerate() {
+                *cmd = lanes[lane_of(i)].1;
+            }
+        },
+        |_, env, res| {
+            for i in 0..n {
+                if fell[i] {
+                    continue;
+                }
+                if res.dones[i] {
+                    fell[i] = true;
+                    continue;
+                }
+                // Heading +x: the distance along the command is the x advance.
+                let start = course.start_pose(lane_of(i)).position_m;
+                distance_m[i] = env.robot_state(i).base_pos_world_m[0] - start[0];
+            }
+        },
+    )?;
+    let mut results: Vec<FeatureResult> = lanes
+        .iter()
+        .enumerate()
+        .map(|(lane, (feature, command))| {
+            let robots: Vec<usize> = (0..n).filter(|&i| lane_of(i) == lane).collect();
+            let successes = robots.iter().filter(|&&i| !fell[i] && distance_m[i] >= SUCCESS_DISTANCE_M).count();
+            FeatureResult {
+                feature: *feature,
+                name: feature.describe(),
+                command: *command,
+                trials: robots.len(),
+                successes,
+                falls: robots.iter().filter(|&&i| fell[i]).count(),
+                mean_distance_m: robots.iter().map(|&i| distance_m[i] as f64).sum::<f64>() / robots.len().max(1) as f64,
+            }
+        })
+        .collect();
+    let outdoor_step = if step { results.pop() } else { None };
+    Ok(TerrainResult {
+        duration_s: DURATION_S,
+        success_distance_m: SUCCESS_DISTANCE_M,
+        run_up_m: host_sim::course::RUN_UP_M,
+        features: results,
+        outdoor_step,
+    })
+}

@@ -1,4 +1,5 @@
 use super::multibody_link::{MultibodyLink, MultibodyLinkVec};
+use super::multibody_tree_factorization::{MultibodyDofTree, MultibodyTreeFactorization};
 use super::multibody_workspace::MultibodyWorkspace;
 use crate::alloc_prelude::*;
 use crate::dynamics::integration_parameters::SpringCoefficients;
@@ -14,9 +15,7 @@ use crate::prelude::MultibodyJoint;
 #[cfg(feature = "dim3")]
 use crate::utils::mat_to_na;
 use crate::utils::{AngularInertiaOps, CrossProduct, CrossProductMatrix, IndexMut2, vect_to_na};
-use na::{
-    self, DMatrix, DVectorView, DVectorViewMut, Dyn, LU, OMatrix, SMatrix, SVector, StorageMut,
-};
+use na::{self, DMatrix, DVectorView, DVectorViewMut, Dyn, OMatrix, SMatrix, SVector, StorageMut};
 
 #[cfg(doc)]
 use crate::prelude::{GenericJoint, RigidBody};
@@ -38,16 +37,7 @@ impl Force {
     }
 }
 
-#[cfg(feature = "dim2")]
-fn concat_rb_mass_matrix(mass: Vector, inertia: Real) -> SMatrix<Real, SPATIAL_DIM, SPATIAL_DIM> {
-    let mut result = SMatrix::<Real, SPATIAL_DIM, SPATIAL_DIM>::zeros();
-    result[(0, 0)] = mass.x;
-    result[(1, 1)] = mass.y;
-    result[(2, 2)] = inertia;
-    result
-}
-
-#[cfg(feature = "dim3")]
+#[cfg(all(test, feature = "dim3"))]
 fn concat_rb_mass_matrix(
     mass: Vector,
     inertia: na::Matrix3<Real>,
@@ -108,15 +98,17 @@ pub struct Multibody {
     // NOTE: the mass matrices are dimensioned based on the non-kinematic degrees of
     //       freedoms only. The `Self::augmented_mass_permutation` sequence can be used to
     //       move dofs from/to a format that matches the augmented mass.
-    // TODO: use sparse matrices?
+    // The matrices are stored dense, but only the entries the kinematic tree allows are
+    // non-zero, and they are factored along the tree (`MultibodyTreeFactorization`).
     augmented_mass: DMatrix<Real>,
-    inv_augmented_mass: LU<Real, Dyn, Dyn>,
+    inv_augmented_mass: MultibodyTreeFactorization,
     // The indexing sequence for moving all kinematics degrees of
     // freedoms to the end of the generalized coordinates vector.
     augmented_mass_indices: IndexSequence,
 
     acc_augmented_mass: DMatrix<Real>,
-    acc_inv_augmented_mass: LU<Real, Dyn, Dyn>,
+    acc_inv_augmented_mass: MultibodyTreeFactorization,
+    dof_tree: MultibodyDofTree,
 
     ndofs: usize,
     pub(crate) root_is_dynamic: bool,
@@ -133,7 +125,10 @@ pub struct Multibody {
     workspace: MultibodyWorkspace,
     coriolis_v: Vec<OMatrix<Real, Dim, Dyn>>,
     coriolis_w: Vec<OMatrix<Real, AngDim, Dyn>>,
-    i_coriolis_dt: Jacobian<Real>,
+    // Per link, its body Jacobian on its chain's DoFs (see `update_mass_matrix`).
+    chain_jacobians: Vec<Jacobian<Real>>,
+    chain_mass_j: Jacobian<Real>,
+    chain_acc_mass_j: Jacobian<Real>,
 }
 impl Default for Multibody {
     fn default() -> Self {
@@ -157,16 +152,19 @@ impl Multibody {
             accelerations: DVector::zeros(0),
             body_jacobians: Vec::new(),
             augmented_mass: DMatrix::zeros(0, 0),
-            inv_augmented_mass: LU::new(DMatrix::zeros(0, 0)),
+            inv_augmented_mass: MultibodyTreeFactorization::default(),
             acc_augmented_mass: DMatrix::zeros(0, 0),
-            acc_inv_augmented_mass: LU::new(DMatrix::zeros(0, 0)),
+            acc_inv_augmented_mass: MultibodyTreeFactorization::default(),
+            dof_tree: MultibodyDofTree::default(),
             augmented_mass_indices: IndexSequence::new(),
             ndofs: 0,
             solver_id: 0,
             workspace: MultibodyWorkspace::new(),
             coriolis_v: Vec::new(),
             coriolis_w: Vec::new(),
-            i_coriolis_dt: Jacobian::zeros(0),
+            chain_jacobians: Vec::new(),
+            chain_mass_j: Jacobian::zeros(0),
+            chain_acc_mass_j: Jacobian::zeros(0),
             root_is_dynamic: false,
             self_contacts_enabled,
             couplings: Vec::new(),
@@ -362,8 +360,9 @@ impl Multibody {
         self.self_contacts_enabled = enabled;
     }
 
-    /// The inverse augmented mass matrix of this multibody.
-    pub fn inv_augmented_mass(&self) -> &LU<Real, Dyn, Dyn> {
+    /// The inverse augmented mass matrix of this multibody, as its factorization along the
+    /// kinematic tree (`solve_mut` applies the inverse).
+    pub fn inv_augmented_mass(&self) -> &MultibodyTreeFactorization {
         &self.inv_augmented_mass
     }
 
@@ -766,6 +765,10 @@ impl Multibody {
     }
 
     fn update_body_jacobians(&mut self) {
+        // A link's body Jacobian is zero outside the DoFs of its chain (its ancestors' and its
+        // own): only those columns are computed.
+        self.update_dof_tree();
+
         for i in 0..self.links.len() {
             let link = &self.links[i];
 
@@ -775,6 +778,8 @@ impl Multibody {
             }
 
             let parent_to_world;
+            let chain = self.dof_tree.chain(i);
+            let ndofs = link.joint.ndofs();
 
             if i != 0 {
                 let parent_id = link.parent_internal_id;
@@ -782,21 +787,24 @@ impl Multibody {
                 parent_to_world = parent_link.local_to_world;
 
                 let (link_j, parent_j) = self.body_jacobians.index_mut_const(i, parent_id);
-                link_j.copy_from(parent_j);
+                link_j.as_mut_slice().fill(0.0);
 
-                {
-                    let mut link_j_v = link_j.fixed_rows_mut::<DIM>(0);
-                    let parent_j_w = parent_j.fixed_rows::<ANG_DIM>(DIM);
-
-                    let shift_tr = vect_to_na(link.shift02).gcross_matrix_tr();
-                    link_j_v.gemm(1.0, &shift_tr, &parent_j_w, 1.0);
+                let shift_tr = vect_to_na(link.shift02).gcross_matrix_tr();
+                for &dof in &chain[..chain.len() - ndofs] {
+                    let parent_j_v = parent_j.fixed_view::<DIM, 1>(0, dof);
+                    let parent_j_w = parent_j.fixed_view::<ANG_DIM, 1>(DIM, dof);
+                    link_j
+                        .fixed_view_mut::<DIM, 1>(0, dof)
+                        .copy_from(&(parent_j_v + shift_tr * parent_j_w));
+                    link_j
+                        .fixed_view_mut::<ANG_DIM, 1>(DIM, dof)
+                        .copy_from(&parent_j_w);
                 }
             } else {
-                self.body_jacobians[i].fill(0.0);
+                self.body_jacobians[i].as_mut_slice().fill(0.0);
                 parent_to_world = Pose::IDENTITY;
             }
 
-            let ndofs = link.joint.ndofs();
             let mut tmp = SMatrix::<Real, SPATIAL_DIM, SPATIAL_DIM>::zeros();
             let mut link_joint_j = tmp.columns_mut(0, ndofs);
             let mut link_j_part = self.body_jacobians[i].columns_mut(link.assembly_id, ndofs);
@@ -808,12 +816,26 @@ impl Multibody {
 
             {
                 let link_j = &mut self.body_jacobians[i];
-                let (mut link_j_v, link_j_w) =
-                    link_j.rows_range_pair_mut(0..DIM, DIM..DIM + ANG_DIM);
                 let shift_tr = vect_to_na(link.shift23).gcross_matrix_tr();
-                link_j_v.gemm(1.0, &shift_tr, &link_j_w, 1.0);
+                for &dof in chain {
+                    let link_j_w = link_j.fixed_view::<ANG_DIM, 1>(DIM, dof).into_owned();
+                    let mut link_j_v = link_j.fixed_view_mut::<DIM, 1>(0, dof);
+                    link_j_v += shift_tr * link_j_w;
+                }
             }
         }
+    }
+
+    /// Rebuilds the DoF tree (each link's chain of DoFs and each DoF's parent) from the links.
+    fn update_dof_tree(&mut self) {
+        self.dof_tree.rebuild(self.links.iter().map(|l| {
+            (
+                l.parent_internal_id,
+                l.assembly_id,
+                l.joint.ndofs(),
+                l.joint.kinematic,
+            )
+        }));
     }
 
     pub(crate) fn update_mass_matrix(&mut self, dt: Real, bodies: &RigidBodySet) {
@@ -826,19 +848,26 @@ impl Multibody {
             self.augmented_mass = DMatrix::zeros(self.ndofs, self.ndofs);
             self.acc_augmented_mass = DMatrix::zeros(self.ndofs, self.ndofs);
         } else {
-            self.augmented_mass.fill(0.0);
-            self.acc_augmented_mass.fill(0.0);
+            self.augmented_mass.as_mut_slice().fill(0.0);
+            self.acc_augmented_mass.as_mut_slice().fill(0.0);
         }
 
         self.augmented_mass_indices.clear();
 
-        // Resize coriolis workspaces if the link count or number of DOFs change.
+        // A link's body Jacobian, and its Coriolis terms, can only be non-zero on the DoFs of
+        // its chain (its ancestors' and its own), so everything below works on those columns:
+        // column `a` of the chain-local matrices of link `i` is DoF `dof_tree.chain(i)[a]`.
+        self.update_dof_tree();
+
+        // Resize the workspaces if the link count or number of DOFs change.
         let coriolis_ndofs = self.coriolis_v.first().map(|m| m.ncols());
         if self.coriolis_v.len() != self.links.len() || coriolis_ndofs != Some(self.ndofs) {
             self.coriolis_v = vec![OMatrix::<Real, Dim, Dyn>::zeros(self.ndofs); self.links.len()];
             self.coriolis_w =
                 vec![OMatrix::<Real, AngDim, Dyn>::zeros(self.ndofs); self.links.len()];
-            self.i_coriolis_dt = Jacobian::zeros(self.ndofs);
+            self.chain_jacobians = vec![Jacobian::zeros(self.ndofs); self.links.len()];
+            self.chain_mass_j = Jacobian::zeros(self.ndofs);
+            self.chain_acc_mass_j = Jacobian::zeros(self.ndofs);
         }
 
         let mut curr_assembly_id = 0;
@@ -848,7 +877,8 @@ impl Multibody {
             let rb = &bodies[link.rigid_body];
             let rb_mass = rb.mprops.effective_mass();
             let rb_inertia = rb.mprops.effective_angular_inertia().into_matrix();
-            let body_jacobian = &self.body_jacobians[i];
+            let chain = self.dof_tree.chain(i);
+            let nchain = chain.len();
 
             // NOTE: the mass matrix index reordering operates on the assumption that the assembly
             //       ids are traversed in order. This assert is here to ensure the assumption always
@@ -869,6 +899,336 @@ impl Multibody {
                 }
             }
 
+            // The body Jacobian on the chain's columns.
+            {
+                let body_jacobian = &self.body_jacobians[i];
+                let chain_j = &mut self.chain_jacobians[i];
+                for (a, &dof) in chain.iter().enumerate() {
+                    chain_j.column_mut(a).copy_from(&body_jacobian.column(dof));
+                }
+            }
+
+            #[allow(unused_mut)] // mut is needed for 3D but not for 2D.
+            let mut augmented_inertia = rb_inertia;
+
+            #[cfg(feature = "dim3")]
+            {
+                // Derivative of gyroscopic forces.
+                let gyroscopic_matrix = rb.vels.angvel.gcross_matrix() * rb_inertia
+                    - (rb_inertia * rb.vels.angvel).gcross_matrix();
+
+                augmented_inertia += gyroscopic_matrix * dt;
+            }
+
+            /*
+             *
+             * Coriolis matrix, column by column of the chain. The parent's chain is a prefix
+             * of this link's chain, so the parent's terms are its first `nchain_parent`
+             * columns, and the columns after them are this link's own DoFs.
+             *
+             */
+            let ndofs = link.joint.ndofs();
+            let nchain_parent = nchain - ndofs;
+            let rb_w_cross = SimdAngVector::<Real>::from(rb.vels.angvel).gcross_matrix();
+            let shift23_cross_tr = vect_to_na(link.shift23).gcross_matrix_tr();
+            // JDot and JDot/u * qdot of the link's own shift.
+            let dvel23_cross = vect_to_na(rb.vels.angvel.gcross(link.shift23)).gcross_matrix_tr()
+                + rb_w_cross * shift23_cross_tr;
+
+            if i != 0 {
+                let parent_id = link.parent_internal_id;
+                let parent_link = &self.links[parent_id];
+                let parent_rb = &bodies[parent_link.rigid_body];
+                let parent_w = SimdAngVector::<Real>::from(parent_rb.vels.angvel).gcross_matrix();
+                // [c1 - c0].gcross() * (JDot + JDot/u * qdot)
+                let shift02_cross_tr = vect_to_na(link.shift02).gcross_matrix_tr();
+                // JDot (the 2.0 originates from the sum of two identical terms in JDot and
+                // JDot/u * qdot), then JDot/u * qdot.
+                let dvel02_cross = vect_to_na(
+                    rb.vels.angvel.gcross(link.shift02) + 2.0 * link.joint_velocity.linvel,
+                )
+                .gcross_matrix_tr()
+                    + vect_to_na(link.joint_velocity.linvel).gcross_matrix_tr()
+                    + parent_w * shift02_cross_tr;
+                #[cfg(feature = "dim3")]
+                let vel_wrt_joint_w = vect_to_na(link.joint_velocity.angvel).gcross_matrix();
+
+                let (coriolis_v, parent_coriolis_v) = self.coriolis_v.index_mut2(i, parent_id);
+                let (coriolis_w, parent_coriolis_w) = self.coriolis_w.index_mut2(i, parent_id);
+                let parent_j = &self.chain_jacobians[parent_id];
+                for a in 0..nchain_parent {
+                    let parent_j_w = parent_j.fixed_view::<ANG_DIM, 1>(DIM, a);
+                    let parent_cw = parent_coriolis_w.fixed_view::<ANG_DIM, 1>(0, a);
+                    let cv = parent_coriolis_v.fixed_view::<DIM, 1>(0, a)
+                        + shift02_cross_tr * parent_cw
+                        + dvel02_cross * parent_j_w;
+                    coriolis_v.fixed_view_mut::<DIM, 1>(0, a).copy_from(&cv);
+                    #[cfg(feature = "dim3")]
+                    {
+                        let cw = parent_cw - vel_wrt_joint_w * parent_j_w;
+                        coriolis_w.fixed_view_mut::<ANG_DIM, 1>(0, a).copy_from(&cw);
+                    }
+                    #[cfg(feature = "dim2")]
+                    coriolis_w
+                        .fixed_view_mut::<ANG_DIM, 1>(0, a)
+                        .copy_from(&parent_cw);
+                }
+
+                coriolis_v.columns_mut(nchain_parent, ndofs).fill(0.0);
+                coriolis_w.columns_mut(nchain_parent, ndofs).fill(0.0);
+                // JDot (but the 2.0 originates from the sum of two identical terms in JDot and JDot/u * gdot)
+                if !link.joint.kinematic {
+                    let mut coriolis_v_part = coriolis_v.columns_mut(nchain_parent, ndofs);
+
+                    let mut tmp1 = SMatrix::<Real, SPATIAL_DIM, SPATIAL_DIM>::zeros();
+                    let mut rb_joint_j = tmp1.columns_mut(0, ndofs);
+                    link.joint.jacobian(
+                        &(parent_link.local_to_world.rotation
+                            * link.joint.data.local_frame1.rotation),
+                        &mut rb_joint_j,
+                    );
+
+                    let rb_joint_j_v = rb_joint_j.fixed_rows::<DIM>(0);
+                    coriolis_v_part.gemm(2.0, &parent_w, &rb_joint_j_v, 1.0);
+
+                    #[cfg(feature = "dim3")]
+                    {
+                        let rb_joint_j_w = rb_joint_j.fixed_rows::<ANG_DIM>(DIM);
+                        let mut coriolis_w_part = coriolis_w.columns_mut(nchain_parent, ndofs);
+                        coriolis_w_part.gemm(1.0, &parent_w, &rb_joint_j_w, 1.0);
+                    }
+                }
+            } else {
+                self.coriolis_v[i].columns_mut(0, nchain).fill(0.0);
+                self.coriolis_w[i].columns_mut(0, nchain).fill(0.0);
+            }
+
+            /*
+             * The link's own shift in the Coriolis terms, then, per chain column, the link's
+             * mass matrix times its Jacobian, without and with the gyroscopic and Coriolis
+             * terms: `M_i·J` and `M_i·J + dt·(gyroscopic·J_w + M_i·Coriolis)`.
+             */
+            let rb_j = &self.chain_jacobians[i];
+            let coriolis_v = &mut self.coriolis_v[i];
+            let coriolis_w = &self.coriolis_w[i];
+            let rb_mass_na = vect_to_na(rb_mass);
+            #[cfg(feature = "dim3")]
+            let (rb_inertia_na, augmented_inertia_na) =
+                (mat_to_na(rb_inertia), mat_to_na(augmented_inertia));
+            for a in 0..nchain {
+                let rb_j_v = rb_j.fixed_view::<DIM, 1>(0, a);
+                let rb_j_w = rb_j.fixed_view::<ANG_DIM, 1>(DIM, a);
+                let cw = coriolis_w.fixed_view::<ANG_DIM, 1>(0, a);
+                // [c3 - c2].gcross() * (JDot + JDot/u * qdot), JDot, JDot/u * qdot.
+                let cv = coriolis_v.fixed_view::<DIM, 1>(0, a)
+                    + shift23_cross_tr * cw
+                    + dvel23_cross * rb_j_w;
+                coriolis_v.fixed_view_mut::<DIM, 1>(0, a).copy_from(&cv);
+
+                let m_jv = rb_mass_na.component_mul(&rb_j_v);
+                let m_cv_dt = rb_mass_na.component_mul(&cv) * dt;
+                #[cfg(feature = "dim3")]
+                let (i_jw, acc_i_jw) = (
+                    rb_inertia_na * rb_j_w,
+                    augmented_inertia_na * rb_j_w + rb_inertia_na * cw * dt,
+                );
+                #[cfg(feature = "dim2")]
+                let (i_jw, acc_i_jw) = (
+                    rb_j_w * rb_inertia,
+                    rb_j_w * augmented_inertia + cw * (rb_inertia * dt),
+                );
+                let mut mass_j = self.chain_mass_j.column_mut(a);
+                mass_j.fixed_rows_mut::<DIM>(0).copy_from(&m_jv);
+                mass_j.fixed_rows_mut::<ANG_DIM>(DIM).copy_from(&i_jw);
+                let mut acc_mass_j = self.chain_acc_mass_j.column_mut(a);
+                acc_mass_j
+                    .fixed_rows_mut::<DIM>(0)
+                    .copy_from(&(m_jv + m_cv_dt));
+                acc_mass_j
+                    .fixed_rows_mut::<ANG_DIM>(DIM)
+                    .copy_from(&acc_i_jw);
+            }
+
+            // `J^T·(M_i·J)` (symmetric) and `J^T·(M_i·J + …)` on the chain's rows and columns.
+            {
+                let n = self.ndofs;
+                let rb_j = &rb_j.as_slice()[..nchain * SPATIAL_DIM];
+                let mass_j = &self.chain_mass_j.as_slice()[..nchain * SPATIAL_DIM];
+                let acc_mass_j = &self.chain_acc_mass_j.as_slice()[..nchain * SPATIAL_DIM];
+                let mass = self.augmented_mass.as_mut_slice();
+                let acc_mass = self.acc_augmented_mass.as_mut_slice();
+                let dot = |x: &[Real], y: &[Real]| -> Real {
+                    let mut acc = 0.0;
+                    for r in 0..SPATIAL_DIM {
+                        acc += x[r] * y[r];
+                    }
+                    acc
+                };
+                for (b, (&col, (mass_j_b, acc_mass_j_b))) in chain
+                    .iter()
+                    .zip(
+                        mass_j
+                            .chunks_exact(SPATIAL_DIM)
+                            .zip(acc_mass_j.chunks_exact(SPATIAL_DIM)),
+                    )
+                    .enumerate()
+                {
+                    for (a, (&row, rb_j_a)) in
+                        chain.iter().zip(rb_j.chunks_exact(SPATIAL_DIM)).enumerate()
+                    {
+                        if a <= b {
+                            let m = dot(rb_j_a, mass_j_b);
+                            mass[row + col * n] += m;
+                            if a != b {
+                                mass[col + row * n] += m;
+                            }
+                        }
+                        acc_mass[row + col * n] += dot(rb_j_a, acc_mass_j_b);
+                    }
+                }
+            }
+        }
+
+        /*
+         * Damping and armature.
+         *
+         * Damping is a velocity-proportional force made implicit, so it adds
+         * `dt · d` to the mass-matrix diagonal. Armature is a "reflected
+         * rotor inertia" (additional inertia to account for the joint’s
+         * mass and geometry itself): it adds to the diagonal directly.
+         */
+        for i in 0..self.ndofs {
+            let diag = self.damping[i] * dt + self.armature[i];
+            self.acc_augmented_mass[(i, i)] += diag;
+            self.augmented_mass[(i, i)] += diag;
+        }
+
+        // Implicit joint springs: `dt²·k` on the mass-matrix diagonal (force term in `update_acceleration`)
+        // keeps a stiff spring on a low-inertia link stable where an explicit position motor injects energy.
+        // The spring lives on the link's `MultibodyJoint` so it travels with the link through topology changes.
+        let dt2 = dt * dt;
+        for li in 0..self.links.len() {
+            let mut idx = self.links[li].assembly_id;
+            let locked = self.links[li].joint.data.locked_axes.bits();
+            for a in 0..SPATIAL_DIM {
+                if (locked >> a) & 1 == 0 {
+                    let k = self.links[li].joint.spring_stiffness[a];
+                    if k != 0.0 {
+                        let d = k * dt2;
+                        self.acc_augmented_mass[(idx, idx)] += d;
+                        self.augmented_mass[(idx, idx)] += d;
+                    }
+                    idx += 1;
+                }
+            }
+        }
+
+        let effective_dim = self
+            .augmented_mass_indices
+            .dim_after_removal(self.acc_augmented_mass.nrows());
+
+        self.augmented_mass_indices
+            .rearrange_columns(&mut self.acc_augmented_mass, true);
+        self.augmented_mass_indices
+            .rearrange_columns(&mut self.augmented_mass, true);
+
+        self.augmented_mass_indices
+            .rearrange_rows(&mut self.acc_augmented_mass, true);
+        self.augmented_mass_indices
+            .rearrange_rows(&mut self.augmented_mass, true);
+
+        // Both matrices have the tree's sparsity: factor them along it, without fill-in.
+        debug_assert_eq!(effective_dim, self.dof_tree.parents.len());
+        self.acc_inv_augmented_mass
+            .factor(&self.acc_augmented_mass, &self.dof_tree.parents);
+        self.inv_augmented_mass
+            .factor(&self.augmented_mass, &self.dof_tree.parents);
+    }
+
+    /// The mass matrices as rapier 0.36.1 assembled them (dense `J^T M J` over all DoFs), to
+    /// test the tree-sparse assembly against. No kinematic links.
+    #[cfg(test)]
+    pub(crate) fn dense_reference_mass_matrices(
+        &self,
+        dt: Real,
+        bodies: &RigidBodySet,
+    ) -> (DMatrix<Real>, DMatrix<Real>, Vec<Jacobian<Real>>) {
+        let mut body_jacobians = vec![Jacobian::zeros(self.ndofs); self.links.len()];
+
+        for i in 0..self.links.len() {
+            let link = &self.links[i];
+
+            if body_jacobians[i].ncols() != self.ndofs {
+                // TODO: use a resize instead.
+                body_jacobians[i] = Jacobian::zeros(self.ndofs);
+            }
+
+            let parent_to_world;
+
+            if i != 0 {
+                let parent_id = link.parent_internal_id;
+                let parent_link = &self.links[parent_id];
+                parent_to_world = parent_link.local_to_world;
+
+                let (link_j, parent_j) = body_jacobians.index_mut_const(i, parent_id);
+                link_j.copy_from(parent_j);
+
+                {
+                    let mut link_j_v = link_j.fixed_rows_mut::<DIM>(0);
+                    let parent_j_w = parent_j.fixed_rows::<ANG_DIM>(DIM);
+
+                    let shift_tr = vect_to_na(link.shift02).gcross_matrix_tr();
+                    link_j_v.gemm(1.0, &shift_tr, &parent_j_w, 1.0);
+                }
+            } else {
+                body_jacobians[i].fill(0.0);
+                parent_to_world = Pose::IDENTITY;
+            }
+
+            let ndofs = link.joint.ndofs();
+            let mut tmp = SMatrix::<Real, SPATIAL_DIM, SPATIAL_DIM>::zeros();
+            let mut link_joint_j = tmp.columns_mut(0, ndofs);
+            let mut link_j_part = body_jacobians[i].columns_mut(link.assembly_id, ndofs);
+            link.joint.jacobian(
+                &(parent_to_world.rotation * link.joint.data.local_frame1.rotation),
+                &mut link_joint_j,
+            );
+            link_j_part += link_joint_j;
+
+            {
+                let link_j = &mut body_jacobians[i];
+                let (mut link_j_v, link_j_w) =
+                    link_j.rows_range_pair_mut(0..DIM, DIM..DIM + ANG_DIM);
+                let shift_tr = vect_to_na(link.shift23).gcross_matrix_tr();
+                link_j_v.gemm(1.0, &shift_tr, &link_j_w, 1.0);
+            }
+        }
+    
+        let mut augmented_mass = DMatrix::zeros(self.ndofs, self.ndofs);
+        let mut acc_augmented_mass = DMatrix::zeros(self.ndofs, self.ndofs);
+        let mut coriolis_v_all = vec![OMatrix::<Real, Dim, Dyn>::zeros(self.ndofs); self.links.len()];
+        let mut coriolis_w_all = vec![OMatrix::<Real, AngDim, Dyn>::zeros(self.ndofs); self.links.len()];
+        let mut i_coriolis_dt = Jacobian::zeros(self.ndofs);
+        let mut curr_assembly_id = 0;
+
+        for i in 0..self.links.len() {
+            let link = &self.links[i];
+            let rb = &bodies[link.rigid_body];
+            let rb_mass = rb.mprops.effective_mass();
+            let rb_inertia = rb.mprops.effective_angular_inertia().into_matrix();
+            let body_jacobian = &body_jacobians[i];
+
+            // NOTE: the mass matrix index reordering operates on the assumption that the assembly
+            //       ids are traversed in order. This assert is here to ensure the assumption always
+            //       hold.
+            assert_eq!(
+                curr_assembly_id, link.assembly_id,
+                "Internal error: contiguity assumption on assembly_id does not hold."
+            );
+            curr_assembly_id += link.joint.ndofs();
+
+            assert!(!link.joint.kinematic, "the reference has no kinematic links");
+
             #[allow(unused_mut)] // mut is needed for 3D but not for 2D.
             let mut augmented_inertia = rb_inertia;
 
@@ -887,9 +1247,9 @@ impl Multibody {
             let rb_mass_matrix_wo_gyro = concat_rb_mass_matrix(rb_mass, rb_inertia.into());
             #[allow(clippy::useless_conversion)] // Needed in 3D, no-op in 2D
             let rb_mass_matrix = concat_rb_mass_matrix(rb_mass, augmented_inertia.into());
-            self.augmented_mass
+            augmented_mass
                 .quadform(1.0, &rb_mass_matrix_wo_gyro, body_jacobian, 1.0);
-            self.acc_augmented_mass
+            acc_augmented_mass
                 .quadform(1.0, &rb_mass_matrix, body_jacobian, 1.0);
 
             /*
@@ -897,7 +1257,7 @@ impl Multibody {
              * Coriolis matrix.
              *
              */
-            let rb_j = &self.body_jacobians[i];
+            let rb_j = &body_jacobians[i];
             let rb_j_w = rb_j.fixed_rows::<ANG_DIM>(DIM);
 
             let ndofs = link.joint.ndofs();
@@ -906,12 +1266,12 @@ impl Multibody {
                 let parent_id = link.parent_internal_id;
                 let parent_link = &self.links[parent_id];
                 let parent_rb = &bodies[parent_link.rigid_body];
-                let parent_j = &self.body_jacobians[parent_id];
+                let parent_j = &body_jacobians[parent_id];
                 let parent_j_w = parent_j.fixed_rows::<ANG_DIM>(DIM);
                 let parent_w = SimdAngVector::<Real>::from(parent_rb.vels.angvel).gcross_matrix();
 
-                let (coriolis_v, parent_coriolis_v) = self.coriolis_v.index_mut2(i, parent_id);
-                let (coriolis_w, parent_coriolis_w) = self.coriolis_w.index_mut2(i, parent_id);
+                let (coriolis_v, parent_coriolis_v) = coriolis_v_all.index_mut2(i, parent_id);
+                let (coriolis_w, parent_coriolis_w) = coriolis_w_all.index_mut2(i, parent_id);
 
                 coriolis_v.copy_from(parent_coriolis_v);
                 coriolis_w.copy_from(parent_coriolis_w);
@@ -965,12 +1325,12 @@ impl Multibody {
                     }
                 }
             } else {
-                self.coriolis_v[i].fill(0.0);
-                self.coriolis_w[i].fill(0.0);
+                coriolis_v_all[i].fill(0.0);
+                coriolis_w_all[i].fill(0.0);
             }
 
-            let coriolis_v = &mut self.coriolis_v[i];
-            let coriolis_w = &mut self.coriolis_w[i];
+            let coriolis_v = &mut coriolis_v_all[i];
+            let coriolis_w = &mut coriolis_w_all[i];
 
             {
                 // [c3 - c2].gcross() * (JDot + JDot/u * qdot)
@@ -990,14 +1350,14 @@ impl Multibody {
                 );
             }
 
-            let coriolis_v = &mut self.coriolis_v[i];
-            let coriolis_w = &mut self.coriolis_w[i];
+            let coriolis_v = &mut coriolis_v_all[i];
+            let coriolis_w = &mut coriolis_w_all[i];
 
             /*
              * Meld with the mass matrix.
              */
             {
-                let mut i_coriolis_dt_v = self.i_coriolis_dt.fixed_rows_mut::<DIM>(0);
+                let mut i_coriolis_dt_v = i_coriolis_dt.fixed_rows_mut::<DIM>(0);
                 i_coriolis_dt_v.copy_from(coriolis_v);
                 let rb_mass_dt = vect_to_na(rb_mass * dt);
                 i_coriolis_dt_v
@@ -1007,18 +1367,18 @@ impl Multibody {
 
             #[cfg(feature = "dim2")]
             {
-                let mut i_coriolis_dt_w = self.i_coriolis_dt.fixed_rows_mut::<ANG_DIM>(DIM);
+                let mut i_coriolis_dt_w = i_coriolis_dt.fixed_rows_mut::<ANG_DIM>(DIM);
                 // NOTE: this is just an axpy, but on row columns.
                 i_coriolis_dt_w.zip_apply(coriolis_w, |o, x| *o = x * dt * rb_inertia);
             }
             #[cfg(feature = "dim3")]
             {
-                let mut i_coriolis_dt_w = self.i_coriolis_dt.fixed_rows_mut::<ANG_DIM>(DIM);
+                let mut i_coriolis_dt_w = i_coriolis_dt.fixed_rows_mut::<ANG_DIM>(DIM);
                 i_coriolis_dt_w.gemm(dt, &mat_to_na(rb_inertia), coriolis_w, 0.0);
             }
 
-            self.acc_augmented_mass
-                .gemm_tr(1.0, rb_j, &self.i_coriolis_dt, 1.0);
+            acc_augmented_mass
+                .gemm_tr(1.0, rb_j, &i_coriolis_dt, 1.0);
         }
 
         /*
@@ -1031,8 +1391,8 @@ impl Multibody {
          */
         for i in 0..self.ndofs {
             let diag = self.damping[i] * dt + self.armature[i];
-            self.acc_augmented_mass[(i, i)] += diag;
-            self.augmented_mass[(i, i)] += diag;
+            acc_augmented_mass[(i, i)] += diag;
+            augmented_mass[(i, i)] += diag;
         }
 
         // Implicit joint springs: `dt²·k` on the mass-matrix diagonal (force term in `update_acceleration`)
@@ -1047,41 +1407,14 @@ impl Multibody {
                     let k = self.links[li].joint.spring_stiffness[a];
                     if k != 0.0 {
                         let d = k * dt2;
-                        self.acc_augmented_mass[(idx, idx)] += d;
-                        self.augmented_mass[(idx, idx)] += d;
+                        acc_augmented_mass[(idx, idx)] += d;
+                        augmented_mass[(idx, idx)] += d;
                     }
                     idx += 1;
                 }
             }
         }
-
-        let effective_dim = self
-            .augmented_mass_indices
-            .dim_after_removal(self.acc_augmented_mass.nrows());
-
-        // PERF: since we clone the matrix anyway for LU, should be directly output
-        //       a new matrix instead of applying permutations?
-        self.augmented_mass_indices
-            .rearrange_columns(&mut self.acc_augmented_mass, true);
-        self.augmented_mass_indices
-            .rearrange_columns(&mut self.augmented_mass, true);
-
-        self.augmented_mass_indices
-            .rearrange_rows(&mut self.acc_augmented_mass, true);
-        self.augmented_mass_indices
-            .rearrange_rows(&mut self.augmented_mass, true);
-
-        // TODO: avoid allocation inside LU at each timestep.
-        self.acc_inv_augmented_mass = LU::new(
-            self.acc_augmented_mass
-                .view((0, 0), (effective_dim, effective_dim))
-                .into_owned(),
-        );
-        self.inv_augmented_mass = LU::new(
-            self.augmented_mass
-                .view((0, 0), (effective_dim, effective_dim))
-                .into_owned(),
-        );
+        (augmented_mass, acc_augmented_mass, body_jacobians)
     }
 
     /// Per-DoF inverse joint-space inertia `diag(M⁻¹)` at the current configuration, where `M`
@@ -1631,27 +1964,32 @@ impl Multibody {
         };
 
         let link = &self.links[link_id];
-        let mut out_j = jacobians.rows_mut(*j_id, self.ndofs);
-        self.body_jacobians[link.internal_id].tr_mul_to(force.as_vector(), &mut out_j);
-
-        // TODO: Optimize with a copy_nonoverlapping?
-        for i in 0..self.ndofs {
-            jacobians[wj_id + i] = jacobians[*j_id + i];
+        let ndofs = self.ndofs;
+        {
+            // J = (body Jacobian)ᵀ·f, column by column of the (column-major) Jacobian.
+            let body_j = self.body_jacobians[link.internal_id].as_slice();
+            let f = force.as_vector().as_slice();
+            let (out_j, out_invm_j) =
+                jacobians.as_mut_slice()[*j_id..*j_id + 2 * ndofs].split_at_mut(ndofs);
+            for (o, column) in out_j.iter_mut().zip(body_j.chunks_exact(SPATIAL_DIM)) {
+                *o = column.iter().zip(f).map(|(a, b)| a * b).sum();
+            }
+            out_invm_j.copy_from_slice(out_j);
         }
 
         {
-            let mut out_invm_j = jacobians.rows_mut(wj_id, self.ndofs);
+            let mut out_invm_j = jacobians.rows_mut(wj_id, ndofs);
             self.augmented_mass_indices
                 .with_rearranged_rows_mut(&mut out_invm_j, |out_invm_j| {
                     self.inv_augmented_mass.solve_mut(out_invm_j);
                 });
         }
 
-        let j = jacobians.rows(*j_id, self.ndofs);
-        let invm_j = jacobians.rows(wj_id, self.ndofs);
-        *j_id += self.ndofs * 2;
+        let (j, invm_j) = jacobians.as_slice()[*j_id..*j_id + 2 * ndofs].split_at(ndofs);
+        let dot = |a: &[Real], b: &[Real]| -> Real { a.iter().zip(b).map(|(a, b)| a * b).sum() };
+        *j_id += ndofs * 2;
 
-        (j.dot(&invm_j), j.dot(&self.generalized_velocity()))
+        (dot(j, invm_j), dot(j, &self.velocities.as_slice()[..ndofs]))
     }
 
     /// Fills `jacobians` with the relative jacobian `J = J2ᵀ·f2 − J1ᵀ·f1` of two links of `self`, then `M⁻¹·J`
@@ -1865,6 +2203,105 @@ mod test {
         RigidBodySet, SoftBodySet,
     };
     use na::{DVector, RowDVector};
+
+    /// The tree-sparse assembly gives the matrices (and body Jacobians) of the dense one, on a
+    /// floating base with branches of revolute, prismatic and spherical joints, moving.
+    #[cfg(feature = "dim3")]
+    #[test]
+    fn tree_sparse_mass_matrices_match_the_dense_reference() {
+        use crate::math::Pose;
+        use crate::prelude::{
+            IntegrationParameters, MultibodyJointSet, PhysicsPipeline, PrismaticJointBuilder,
+            RevoluteJointBuilder, SphericalJointBuilder,
+        };
+        let mut bodies = RigidBodySet::new();
+        let mut colliders = ColliderSet::new();
+        let mut joints = MultibodyJointSet::new();
+        let mut builder = |pos: Vector| {
+            let h = bodies.insert(RigidBodyBuilder::dynamic().translation(pos).angvel(Vector::new(0.3, -0.7, 1.1)).linvel(Vector::new(0.2, 0.1, -0.4)));
+            colliders.insert_with_parent(crate::prelude::ColliderBuilder::cuboid(0.1, 0.05, 0.2).density(2.0), h, &mut bodies);
+            h
+        };
+        let base = builder(Vector::ZERO);
+        let mut handles = vec![base];
+        for leg in 0..3 {
+            let dir = Vector::new(leg as Real - 1.0, 0.5, 0.2 * leg as Real);
+            let a = builder(dir * 0.3);
+            let b = builder(dir * 0.6);
+            let c = builder(dir * 0.9);
+            let rev = RevoluteJointBuilder::new(Vector::Z).local_anchor1(dir * 0.15).local_anchor2(-dir * 0.15);
+            joints.insert(base, a, rev, true).unwrap();
+            if leg == 1 {
+                let sph = SphericalJointBuilder::new().local_anchor1(dir * 0.15).local_anchor2(-dir * 0.15);
+                joints.insert(a, b, sph, true).unwrap();
+            } else {
+                let rev = RevoluteJointBuilder::new(Vector::X).local_anchor1(dir * 0.15).local_anchor2(-dir * 0.15);
+                joints.insert(a, b, rev, true).unwrap();
+            }
+            let pri = PrismaticJointBuilder::new(Vector::Y).local_anchor1(dir * 0.15).local_anchor2(-dir * 0.15);
+            joints.insert(b, c, pri, true).unwrap();
+            handles.extend([a, b, c]);
+        }
+        let _ = Pose::IDENTITY;
+        {
+            let link = joints.rigid_body_link(base).unwrap();
+            let mb = joints.get_multibody_mut(link.multibody).unwrap();
+            let mut v = mb.generalized_velocity_mut();
+            for i in 0..v.len() {
+                v[i] = (i as Real * 1.3).sin() * 2.0;
+            }
+        }
+        // A few steps so that the links move relative to each other.
+        let mut pipeline = PhysicsPipeline::new();
+        let params = IntegrationParameters::default();
+        let (mut islands, mut broad_phase, mut narrow_phase) = (
+            IslandManager::new(),
+            crate::prelude::DefaultBroadPhase::new(),
+            crate::prelude::NarrowPhase::new(),
+        );
+        let mut impulse_joints = ImpulseJointSet::new();
+        let mut ccd = crate::prelude::CCDSolver::new();
+        let mut soft = SoftBodySet::new();
+        for _ in 0..5 {
+            pipeline.step(
+                Vector::new(0.0, -9.81, 0.0),
+                &params,
+                &mut islands,
+                &mut broad_phase,
+                &mut narrow_phase,
+                &mut bodies,
+                &mut colliders,
+                &mut impulse_joints,
+                &mut joints,
+                &mut soft,
+                &mut ccd,
+                &(),
+                &(),
+            );
+        }
+        let link = joints.rigid_body_link(base).unwrap();
+        let mb = joints.get_multibody_mut(link.multibody).unwrap();
+        mb.forward_kinematics(&bodies, false);
+        mb.update_mass_matrix(params.dt, &bodies);
+        let (mass, acc_mass, jacobians) = mb.dense_reference_mass_matrices(params.dt, &bodies);
+        assert_eq!(mb.ndofs(), 6 + 3 * 3 + 2);
+        for (i, j) in jacobians.iter().enumerate() {
+            assert!((j - mb.body_jacobian(i)).amax() < 1.0e-5, "body Jacobian of link {i}");
+        }
+        let scale = mass.amax();
+        // The velocity-dependent terms are not negligible in this state.
+        assert!((&acc_mass - &mass).amax() > 1.0e-3 * scale);
+        assert!((&mass - &mb.augmented_mass).amax() < 1.0e-5 * scale, "{mass} vs {}", mb.augmented_mass);
+        assert!((&acc_mass - &mb.acc_augmented_mass).amax() < 1.0e-5 * scale, "{acc_mass} vs {}", mb.acc_augmented_mass);
+        // The factorizations solve with them.
+        let b = DVector::from_fn(mb.ndofs(), |i, _| (i as Real * 0.37).sin());
+        for (m, f) in [(&mass, &mb.inv_augmented_mass), (&acc_mass, &mb.acc_inv_augmented_mass)] {
+            assert!(f.is_tree_sparse());
+            let mut x = b.clone();
+            assert!(f.solve_mut(&mut x));
+            assert!((m * &x - &b).amax() < 1.0e-4 * b.amax(), "residual");
+        }
+    }
 
     #[test]
     fn test_multibody_append() {

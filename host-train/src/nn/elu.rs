@@ -20,19 +20,57 @@ fn slice<'a, T>(data: &'a [T], layout: &Layout, op: &str) -> Result<&'a [T]> {
     }
 }
 
+/// `f` over `x`, in parallel chunks, each a plain loop the compiler vectorizes.
 fn map1<T: Copy + Send + Sync>(x: &[T], f: impl Fn(T) -> T + Sync) -> Vec<T> {
-    let mut out = Vec::with_capacity(x.len());
-    // SAFETY-free initialization: extend by a parallel collect into chunks.
-    out.par_extend(x.par_chunks(CHUNK).flat_map_iter(|c| c.iter().map(|&v| f(v))));
+    let mut out: Vec<T> = Vec::with_capacity(x.len());
+    out.spare_capacity_mut()[..x.len()].par_chunks_mut(CHUNK).zip(x.par_chunks(CHUNK)).for_each(|(o, c)| {
+        for (o, &v) in o.iter_mut().zip(c) {
+            o.write(f(v));
+        }
+    });
+    // SAFETY: the loop above wrote every one of the first `x.len()` elements.
+    unsafe { out.set_len(x.len()) };
     out
 }
 
+/// `f` over `a` and `b` element by element, as `map1`.
 fn map2<T: Copy + Send + Sync>(a: &[T], b: &[T], f: impl Fn(T, T) -> T + Sync) -> Vec<T> {
-    let mut out = Vec::with_capacity(a.len());
-    out.par_extend(
-        a.par_chunks(CHUNK).zip(b.par_chunks(CHUNK)).flat_map_iter(|(ca, cb)| ca.iter().zip(cb).map(|(&x, &y)| f(x, y))),
-    );
+    assert_eq!(a.len(), b.len());
+    let mut out: Vec<T> = Vec::with_capacity(a.len());
+    out.spare_capacity_mut()[..a.len()]
+        .par_chunks_mut(CHUNK)
+        .zip(a.par_chunks(CHUNK).zip(b.par_chunks(CHUNK)))
+        .for_each(|(o, (ca, cb))| {
+            for ((o, &x), &y) in o.iter_mut().zip(ca).zip(cb) {
+                o.write(f(x, y));
+            }
+        });
+    // SAFETY: the loop above wrote every one of the first `a.len()` elements.
+    unsafe { out.set_len(a.len()) };
     out
+}
+
+/// `exp(x) - 1` for `x <= 0` in f32, branch-free so that the element loops vectorize (libm's
+/// `expm1f` is a scalar call per element, which made ELU a sixth of a PPO step): `x = n ln 2
+/// + r` with `|r| <= ln 2 / 2` (Cody-Waite, two-part `ln 2`), `e^r - 1` by its Taylor
+/// polynomial to degree 8 (truncation below 1e-9), then `2^n (e^r - 1) + (2^n - 1)`.
+/// Relative error within 3e-7 of libm (tested); `x < -87` gives -1.
+#[inline(always)]
+pub fn expm1_nonpositive_f32(x: f32) -> f32 {
+    const LN2_HI: f32 = 0.693_145_75;
+    const LN2_LO: f32 = 1.428_606_8e-6;
+    const ROUND: f32 = 12_582_912.0; // 1.5 * 2^23: adding it rounds to an integer.
+    let x = x.clamp(-87.0, 0.0);
+    let n = (x * std::f32::consts::LOG2_E + ROUND) - ROUND;
+    let r = (x - n * LN2_HI) - n * LN2_LO;
+    // e^r - 1 = r + r^2/2! + ... + r^8/8!, Horner.
+    let p = r
+        * (1.0
+            + r * (1.0 / 2.0
+                + r * (1.0 / 6.0
+                    + r * (1.0 / 24.0 + r * (1.0 / 120.0 + r * (1.0 / 720.0 + r * (1.0 / 5040.0 + r * (1.0 / 40320.0))))))));
+    let two_n = f32::from_bits(((n as i32 + 127) << 23) as u32);
+    two_n * p + (two_n - 1.0)
 }
 
 macro_rules! unary_cpu {
@@ -76,7 +114,7 @@ impl CustomOp1 for Elu {
             storage,
             layout,
             "fused-elu",
-            |x: f32| if x > 0.0 { x } else { x.exp_m1() },
+            |x: f32| if x > 0.0 { x } else { expm1_nonpositive_f32(x) },
             |x: f64| if x > 0.0 { x } else { x.exp_m1() }
         )
     }
@@ -117,7 +155,7 @@ impl CustomOp1 for EluDerivative {
             storage,
             layout,
             "elu-derivative",
-            |z: f32| if z > 0.0 { 1.0 } else { z.exp() },
+            |z: f32| if z > 0.0 { 1.0 } else { expm1_nonpositive_f32(z) + 1.0 },
             |z: f64| if z > 0.0 { 1.0 } else { z.exp() }
         )
     }
@@ -140,7 +178,7 @@ impl CustomOp2 for EluDerivativeBackward {
             s2,
             l2,
             "elu-derivative-backward",
-            |g: f32, z: f32| if z > 0.0 { 0.0 } else { g * z.exp() },
+            |g: f32, z: f32| if z > 0.0 { 0.0 } else { g * (expm1_nonpositive_f32(z) + 1.0) },
             |g: f64, z: f64| if z > 0.0 { 0.0 } else { g * z.exp() }
         )
     }
@@ -160,6 +198,24 @@ pub fn elu_derivative(z: &Tensor) -> Result<Tensor> {
 mod tests {
     use super::*;
     use candle_core::{Device, Var};
+
+    #[test]
+    fn fast_expm1_matches_libm() {
+        let mut worst = 0.0f64;
+        for i in 0..=200_000 {
+            let x = -30.0 * (i as f32 / 200_000.0).powi(3); // dense near 0, out to -30
+            let fast = expm1_nonpositive_f32(x) as f64;
+            let exact = (x as f64).exp_m1();
+            let rel = (fast - exact).abs() / exact.abs().max(1e-30);
+            if x != 0.0 {
+                worst = worst.max(rel);
+            }
+        }
+        assert!(worst < 3e-7, "worst relative error {worst}");
+        assert_eq!(expm1_nonpositive_f32(0.0), 0.0);
+        assert_eq!(expm1_nonpositive_f32(-200.0), -1.0);
+        assert_eq!(expm1_nonpositive_f32(f32::NEG_INFINITY), -1.0);
+    }
 
     #[test]
     fn matches_candle_elu_and_its_gradients() {

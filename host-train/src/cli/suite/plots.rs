@@ -36,6 +36,7 @@ fn panel(
     y_label: &str,
     y_range: Option<(f64, f64)>,
     series: &[Series],
+    legend: SeriesLabelPosition,
 ) -> Result<(), String> {
     let finite = || series.iter().flat_map(|s| s.points.iter()).filter(|p| p.0.is_finite() && p.1.is_finite());
     let x0 = finite().map(|p| p.0).fold(f64::MAX, f64::min);
@@ -72,7 +73,7 @@ fn panel(
     }
     chart
         .configure_series_labels()
-        .position(SeriesLabelPosition::LowerLeft)
+        .position(legend)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()
@@ -83,7 +84,8 @@ fn panel(
 fn single(path: &Path, title: &str, x_label: &str, y_label: &str, y_range: Option<(f64, f64)>, series: &[Series]) -> Result<(), String> {
     let root = BitMapBackend::new(path, (900, 540)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| e.to_string())?;
-    panel(&root, title, x_label, y_label, y_range, series)?;
+    let legend = if x_label == "iteration" { SeriesLabelPosition::UpperLeft } else { SeriesLabelPosition::LowerLeft };
+    panel(&root, title, x_label, y_label, y_range, series, legend)?;
     root.present().map_err(|e| e.to_string())
 }
 
@@ -156,7 +158,7 @@ pub fn draw_all(dir: &Path, reports: &[ControllerReport]) -> Result<Vec<PathBuf>
             points_marked: false,
         }));
         let name = super::sine::AXES[axis];
-        panel(&areas[0], &format!("{name} command: tracking"), "time, s", &format!("{name}, {unit}"), None, &tracking)?;
+        panel(&areas[0], &format!("{name} command: tracking"), "time, s", &format!("{name}, {unit}"), None, &tracking, SeriesLabelPosition::LowerLeft)?;
         let rest: [(&str, &str, fn(&super::sine::SineRun) -> &[f32]); 3] = [
             ("vz", "vz, m/s", |s| &s.vz_m_s),
             ("roll", "roll, deg", |s| &s.roll_deg),
@@ -167,7 +169,7 @@ pub fn draw_all(dir: &Path, reports: &[ControllerReport]) -> Result<Vec<PathBuf>
                 .iter()
                 .map(|(i, r, s)| Series { name: r.name.clone(), points: trace(s, get(s)), color: color(*i), points_marked: false })
                 .collect();
-            panel(&areas[k + 1], &format!("{name} command: {what}"), "time, s", y_label, None, &series)?;
+            panel(&areas[k + 1], &format!("{name} command: {what}"), "time, s", y_label, None, &series, SeriesLabelPosition::LowerLeft)?;
         }
         root.present().map_err(|e| e.to_string())?;
     }

@@ -341,7 +341,9 @@ impl SuiteReport {
             s,
             "## Curriculum (Fig. 4)\n\n\
              The mean terrain row of the robots on each tile kind's column, over training iterations, from the \
-             run's `metrics.csv` (final: the mean of the last {} logged iterations).\n",
+             run's `metrics.csv` (final: the mean of the last {} logged iterations). Rows: the checkpoint's grid; \
+             a lineage that changed grids (its README says) logged earlier iterations in the rows of the grid it \
+             had then, which `metrics.csv` does not record.\n",
             super::curriculum::FINAL_WINDOW
         );
         let _ = writeln!(s, "| controller | metrics | iterations | rows | tile kind: final row (highest) |\n|---|---|---|---|---|");

@@ -127,6 +127,7 @@ impl UrdfModel {
                 ));
             }
         }
+        check_tree(&robot).map_err(|(field, message)| field_err(field, message))?;
         if robot.joints.len() != NUM_JOINTS {
             return Err(field_err(
                 "joint".into(),
@@ -135,6 +136,48 @@ impl UrdfModel {
         }
         Ok(Self { path: path.to_owned(), xml, robot, armature_kg_m2 })
     }
+}
+
+/// The links and joints form one tree rooted at `base`: every joint joins two existing
+/// links, no link has two parent joints, and every link reaches `base` without a cycle (the
+/// simulator builds one reduced-coordinate multibody along it).
+fn check_tree(robot: &urdf_rs::Robot) -> Result<(), (String, String)> {
+    use std::collections::HashMap;
+    let links: std::collections::HashSet<&str> = robot.links.iter().map(|l| l.name.as_str()).collect();
+    let mut parent_of: HashMap<&str, &str> = HashMap::new();
+    for joint in &robot.joints {
+        for (end, link) in [("parent", &joint.parent.link), ("child", &joint.child.link)] {
+            if !links.contains(link.as_str()) {
+                return Err((format!("joint {} / {end}", joint.name), format!("no link named `{link}`")));
+            }
+        }
+        if let Some(previous) = parent_of.insert(joint.child.link.as_str(), joint.parent.link.as_str()) {
+            return Err((
+                format!("joint {} / child", joint.name),
+                format!(
+                    "link `{}` already has parent `{previous}`: a kinematic loop (the model must be a tree)",
+                    joint.child.link
+                ),
+            ));
+        }
+    }
+    if parent_of.contains_key("base") {
+        return Err(("link base".into(), "the root link `base` is a joint's child".into()));
+    }
+    for link in &robot.links {
+        let (mut current, mut steps) = (link.name.as_str(), 0);
+        while current != "base" {
+            current = match parent_of.get(current) {
+                Some(parent) => parent,
+                None => return Err((format!("link {}", link.name), "not connected to `base`".into())),
+            };
+            steps += 1;
+            if steps > robot.links.len() {
+                return Err((format!("link {}", link.name), "on a kinematic loop (the model must be a tree)".into()));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The value of the first `name="..."` attribute in `xml`.
@@ -178,6 +221,24 @@ mod tests {
     fn malformed_xml_is_refused() {
         let err = UrdfModel::from_xml(Path::new("bad.urdf"), "<robot name=".into()).unwrap_err();
         assert!(matches!(err, UrdfError::Parse { .. }), "{err}");
+    }
+
+    #[test]
+    fn kinematic_loop_is_refused() {
+        // Make the first leg's shank the child of a second joint: a loop, which the
+        // reduced-coordinate multibody cannot represent.
+        let xml = shipped();
+        let marker = "<child link=\"";
+        let first = xml.find(marker).expect("a joint child");
+        let start = first + marker.len();
+        let end = start + xml[start..].find('"').unwrap();
+        let first_child = xml[start..end].to_string();
+        let second = start + xml[start..].find(marker).expect("a second joint");
+        let s2 = second + marker.len();
+        let e2 = s2 + xml[s2..].find('"').unwrap();
+        let looped = format!("{}{}{}", &xml[..s2], first_child, &xml[e2..]);
+        let err = UrdfModel::from_xml(Path::new("looped.urdf"), looped).unwrap_err().to_string();
+        assert!(err.contains("looped.urdf") && err.contains("loop"), "{err}");
     }
 
     #[test]

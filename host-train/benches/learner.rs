@@ -3,7 +3,12 @@
 //! PyTorch (`bench/learner_torch.py`), printed as ratios; plus end-to-end training
 //! throughput (env steps/s including updates) on the simulator.
 //!
-//! `cargo bench -p host-train --bench learner -- [--batch N] [--reps N] [--no-torch] [--e2e-envs N]`
+//! `cargo bench -p host-train --bench learner -- [--batch N]... [--reps N] [--no-torch] [--e2e-envs N] [--e2e-config F]`
+//!
+//! By default both batch sizes the presets train with are measured: 1,536 (a minibatch of the
+//! CPU presets' 128 x 24 rollout split in 2) and 24,576 (the paper's 4,096 x 24 split in 4).
+//! The end-to-end figure is printed beside the ceiling MuJoCo's physics alone would allow on
+//! the same threads (its steps/s x threads / decimation), measured in the same run.
 
 use anyhow::{bail, Context};
 use candle_core::{DType, Device, Tensor};
@@ -12,7 +17,7 @@ use host_train::algo::adam::Adam;
 use host_train::algo::ppo::{Minibatch, Ppo};
 use host_train::amp::discriminator::{Discriminator, DISC_IN};
 use host_train::amp::prior_source::SyntheticTripod;
-use host_train::config::{EnvKind, PriorKind, TrainConfig};
+use host_train::config::{EnvKind, TrainConfig};
 use host_train::runner::Runner;
 use hexapod_core::nets::ACTOR_OUT;
 use hexapod_core::obs::{ACTOR_OBS_DIM, HEIGHT_SCAN_DIM, HISTORY_DIM, PRIVILEGED_DIM};
@@ -25,22 +30,24 @@ use std::time::Instant;
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 struct Args {
-    batch: usize,
+    batches: Vec<usize>,
     reps: usize,
     torch: bool,
     e2e_envs: usize,
     e2e_iterations: usize,
+    e2e_config: String,
 }
 
 fn parse_args() -> anyhow::Result<Args> {
-    let mut a = Args { batch: 24_576, reps: 5, torch: true, e2e_envs: 128, e2e_iterations: 3 };
+    let mut a = Args { batches: Vec::new(), reps: 5, torch: true, e2e_envs: 128, e2e_iterations: 3, e2e_config: "flat-tripod.toml".into() };
     let mut it = std::env::args().skip(1);
     while let Some(arg) = it.next() {
         let mut num = |name: &str| -> anyhow::Result<usize> {
             it.next().with_context(|| format!("{name} needs a value"))?.parse().with_context(|| format!("bad {name}"))
         };
         match arg.as_str() {
-            "--batch" => a.batch = num("--batch")?,
+            "--batch" => a.batches.push(num("--batch")?),
+            "--e2e-config" => a.e2e_config = it.next().context("--e2e-config needs a preset file name")?,
             "--reps" => a.reps = num("--reps")?,
             "--e2e-envs" => a.e2e_envs = num("--e2e-envs")?,
             "--e2e-iterations" => a.e2e_iterations = num("--e2e-iterations")?,
@@ -48,6 +55,12 @@ fn parse_args() -> anyhow::Result<Args> {
             "--bench" => {}
             other => bail!("unknown argument {other}"),
         }
+    }
+    if a.batches.is_empty() {
+        a.batches = vec![1536, 24_576];
+    }
+    if a.batches.contains(&0) || a.reps == 0 {
+        bail!("--batch and --reps must be positive");
     }
     Ok(a)
 }
@@ -114,14 +127,13 @@ fn candle_disc_step(batch: usize, reps: usize) -> anyhow::Result<f64> {
     })
 }
 
-/// End-to-end: `hexapod train` iterations on the simulator (default preset with synthetic
-/// priors), env steps per second including updates.
-fn end_to_end(envs: usize, iterations: usize) -> anyhow::Result<(f64, f64, f64)> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/default.toml");
+/// End-to-end: `hexapod train` iterations on the simulator with a preset (its own priors),
+/// env steps per second including updates.
+fn end_to_end(config: &str, envs: usize, iterations: usize) -> anyhow::Result<(f64, f64, f64)> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs").join(config);
     let mut cfg = TrainConfig::load(&root)?;
     cfg.env.kind = EnvKind::Sim;
     cfg.env.num_envs = envs;
-    cfg.amp.prior_kind = PriorKind::Synthetic;
     cfg.runner.max_iterations = iterations;
     let env = host_train::env::make_env(&cfg)?;
     let dir = std::env::temp_dir().join(format!("hexapod-bench-{}", std::process::id()));
@@ -158,42 +170,62 @@ fn main() -> anyhow::Result<()> {
     host_train::threads::single_threaded_elementwise();
     let threads = candle_core::utils::get_num_threads();
     println!(
-        "learner benchmark: batch {}, median of {} reps, {} threads (candle element-wise pool: {}), mimalloc purging {}",
-        args.batch,
+        "learner benchmark: batches {:?}, median of {} reps, {} threads (candle element-wise pool: {}), mimalloc purging {}",
+        args.batches,
         args.reps,
         threads,
         std::env::var("CANDLE_NUM_THREADS").unwrap_or_default(),
         if kept { "off" } else { "on" }
     );
-    let ppo = candle_ppo_step(args.batch, args.reps)?;
-    let disc = candle_disc_step(args.batch, args.reps)?;
-    let torch = if args.torch {
-        match torch_times(args.batch, args.reps, threads) {
-            Ok(t) => Some(t),
-            Err(e) => {
-                println!("PyTorch: not measured ({e})");
-                None
+    println!("{:<34} {:>7} {:>10} {:>10} {:>8}", "step", "batch", "candle s", "torch s", "ratio");
+    for &batch in &args.batches {
+        let ppo = candle_ppo_step(batch, args.reps)?;
+        let disc = candle_disc_step(batch, args.reps)?;
+        let torch = if args.torch {
+            match torch_times(batch, args.reps, threads) {
+                Ok(t) => Some(t),
+                Err(e) => {
+                    println!("PyTorch: not measured ({e})");
+                    None
+                }
             }
-        }
-    } else {
-        None
-    };
-    println!("{:<34} {:>10} {:>10} {:>8}", "step", "candle s", "torch s", "ratio");
-    for (name, c, t) in [
-        ("PPO minibatch step", ppo, torch.map(|t| t.0)),
-        ("discriminator step + penalty", disc, torch.map(|t| t.1)),
-    ] {
-        match t {
-            Some(t) => println!("{name:<34} {c:>10.3} {t:>10.3} {:>7.2}x", c / t),
-            None => println!("{name:<34} {c:>10.3} {:>10} {:>8}", "-", "-"),
+        } else {
+            None
+        };
+        for (name, c, t) in [
+            ("PPO minibatch step", ppo, torch.map(|t| t.0)),
+            ("discriminator step + penalty", disc, torch.map(|t| t.1)),
+        ] {
+            match t {
+                Some(t) => println!("{name:<34} {batch:>7} {c:>10.3} {t:>10.3} {:>7.2}x", c / t),
+                None => println!("{name:<34} {batch:>7} {c:>10.3} {:>10} {:>8}", "-", "-"),
+            }
         }
     }
     if args.e2e_envs > 0 {
-        let (sps, collect, update) = end_to_end(args.e2e_envs, args.e2e_iterations)?;
+        let (sps, collect, update) = end_to_end(&args.e2e_config, args.e2e_envs, args.e2e_iterations)?;
         println!(
-            "end to end (sim, {} envs x 24 steps, default preset): {:.0} env steps/s (collect {:.2} s + update {:.2} s per iteration)",
-            args.e2e_envs, sps, collect, update
+            "end to end (sim, {} envs x 24 steps, {}): {:.0} env steps/s (collect {:.2} s + update {:.2} s per iteration, update {:.0} % of it)",
+            args.e2e_envs,
+            args.e2e_config,
+            sps,
+            collect,
+            update,
+            100.0 * update / (collect + update)
         );
+        match host_sim::peer::run_mujoco(5000, 400) {
+            Ok(p) => match p.flat_steps_per_s {
+                Some(mj) => println!(
+                    "ceiling: MuJoCo physics alone, flat, {:.0} steps/s x {} threads / decimation {} = {:.0} env steps/s",
+                    mj,
+                    threads,
+                    hexapod_core::timing::DECIMATION,
+                    mj * threads as f64 / hexapod_core::timing::DECIMATION as f64
+                ),
+                None => println!("ceiling: MuJoCo gave no flat rate"),
+            },
+            Err(e) => println!("ceiling: MuJoCo not measured ({e})"),
+        }
     }
     Ok(())
 }

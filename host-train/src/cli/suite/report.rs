@@ -251,11 +251,13 @@ impl SuiteReport {
                  feature's first edge, facing it, and walks at {:.1} m/s for {:.0} s. Stairs have 0.35 m treads \
                  and 14 risers; ramps run 5 m; a level landing follows. **Success: no fall and at least {:.0} m \
                  along the command** (the base's advance from its start at the end of the run, which puts it about \
-                 1 m into the feature). Cells: successes of trials (mean distance along the command, m).\n",
+                 1 m into the feature). Cells: successes of trials (mean distance along the command, m; the command \
+                 asks for {:.0} m, and more means the robot ran or slid ahead of it, as on the steep ramps down).\n",
                 t0.run_up_m,
                 terrain::TERRAIN_COMMAND[0],
                 t0.duration_s,
-                t0.success_distance_m
+                t0.success_distance_m,
+                terrain::TERRAIN_COMMAND[0] * t0.duration_s
             );
             let _ = writeln!(s, "| terrain | {} |\n|---|{}", runs.iter().map(|r| r.0.name.as_str()).collect::<Vec<_>>().join(" | "), "---|".repeat(runs.len()));
             for (k, f) in t0.features.iter().enumerate() {

@@ -102,7 +102,13 @@ fn time_env(args: &BenchArgs, terrain: bool) -> anyhow::Result<f64> {
 
 /// Runs the benchmark and prints the table.
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
-    for (name, value) in [("--steps", args.steps), ("--envs", args.envs), ("--threads", args.threads), ("--env-steps", args.env_steps), ("--solver-iterations", args.solver_iterations)] {
+    for (name, value) in [
+        ("--steps", args.steps),
+        ("--envs", args.envs),
+        ("--threads", args.threads),
+        ("--env-steps", args.env_steps),
+        ("--solver-iterations", args.solver_iterations),
+    ] {
         if value == 0 {
             anyhow::bail!("{name} must be at least 1");
         }

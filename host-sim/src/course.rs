@@ -126,7 +126,10 @@ impl Course {
                 heights_m[ix * ny + iy] = features[lane].height_at_cell(ix as i64 - edge_cell);
             }
         }
-        Self { features: features.to_vec(), terrain: Terrain::from_heights(CELL_M, nx, ny, heights_m) }
+        Self {
+            features: features.to_vec(),
+            terrain: Terrain::from_heights(CELL_M, nx, ny, heights_m),
+        }
     }
 
     /// The ground of all lanes.
@@ -142,7 +145,10 @@ impl Course {
     /// Start pose of lane `lane`: on its centre line, [`RUN_UP_M`] before the feature,
     /// facing it (+x).
     pub fn start_pose(&self, lane: usize) -> SpawnPose {
-        SpawnPose { position_m: [BACK_MARGIN_M, self.lane_center_y_m(lane)], yaw_rad: 0.0 }
+        SpawnPose {
+            position_m: [BACK_MARGIN_M, self.lane_center_y_m(lane)],
+            yaw_rad: 0.0,
+        }
     }
 
     /// World x of every feature's first edge (a riser's foot, a ramp's start), m.
@@ -162,7 +168,9 @@ mod tests {
 
     #[test]
     fn stair_arithmetic_is_exact() {
-        let f = Feature::StairsUp { step_height_m: 0.08 };
+        let f = Feature::StairsUp {
+            step_height_m: 0.08,
+        };
         assert_eq!(f.height_m(-0.5), 0.0);
         assert_eq!(f.height_m(0.0), 0.0);
         assert_eq!(f.height_m(0.05), 0.08);
@@ -171,6 +179,9 @@ mod tests {
         let last = 0.08 * (FEATURE_LENGTH_M / TREAD_M).floor();
         assert!((f.height_m(FEATURE_LENGTH_M + 1.0) - last).abs() < 1e-6);
         assert_eq!(Feature::Step { height_m: 0.15 }.height_m(2.0), 0.15);
-        assert_eq!(Feature::StairsDown { step_height_m: 0.2 }.height_m(0.1), -0.2);
+        assert_eq!(
+            Feature::StairsDown { step_height_m: 0.2 }.height_m(0.1),
+            -0.2
+        );
     }
 }

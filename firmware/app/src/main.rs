@@ -32,8 +32,8 @@ use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{bind_interrupts, dma, interrupt, pac};
 use embassy_time::Delay;
 use embedded_hal_bus::spi::ExclusiveDevice;
-use hexapod_core::hal::BootInfo;
 use hexapod_core::control::NnPolicy;
+use hexapod_core::hal::BootInfo;
 use hexapod_core::nn::Kernel;
 use {defmt_rtt as _, panic_probe as _};
 

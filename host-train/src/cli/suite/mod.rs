@@ -233,7 +233,7 @@ mod tests {
         SuiteOptions {
             suite: "paper".into(),
             checkpoints: vec![PathBuf::from("assets/policies/flat-tripod")],
-            out: PathBuf::from("/tmp/x"),
+            out: std::env::temp_dir().join("hexapod-suite-test"),
             protocols: Vec::new(),
             quick: true,
             trials: None,

@@ -105,6 +105,18 @@ impl Sil {
         }
     }
 
+    /// A robot that stood up and has walked forward (0.6 of full stick) for 1 s with the
+    /// scripted tripod gait, and that gait to go on with.
+    pub fn walking_with_gait(seed: u64) -> (Self, crate::gait_policy::GaitPolicy) {
+        let mut sil = Self::new(seed).expect("SIL world");
+        sil.stand_up().expect("stands up");
+        let mut gait = crate::gait_policy::GaitPolicy::default();
+        sil.h.rc.set_sticks(0.6, 0.0, 0.0);
+        sil.run(1.0, &mut gait);
+        assert_eq!(sil.mode(), Mode::Walking);
+        (sil, gait)
+    }
+
     /// Boots, arms and stands up with the zero policy until the supervisor hands over to
     /// the policy (`Walking`).
     pub fn stand_up(&mut self) -> Result<(), Mode> {

@@ -15,13 +15,7 @@ use sil_tests::sil::Sil;
 const JOINT: usize = 7;
 
 fn walking(seed: u64) -> (Sil, GaitPolicy) {
-    let mut sil = Sil::new(seed).unwrap();
-    sil.stand_up().expect("stands up");
-    let mut gait = GaitPolicy::default();
-    sil.h.rc.set_sticks(0.6, 0.0, 0.0);
-    sil.run(1.0, &mut gait);
-    assert_eq!(sil.mode(), Mode::Walking);
-    (sil, gait)
+    Sil::walking_with_gait(seed)
 }
 
 /// Runs until the robot is seated with torque off, then checks the lost drive's end state

@@ -8,7 +8,6 @@ use hexapod_core::canopen::cia402::PowerState;
 use hexapod_core::controller::ZeroPolicy;
 use hexapod_core::hal::{BootInfo, ResetCause};
 use hexapod_core::supervisor::{Fault, Mode};
-use sil_tests::gait_policy::GaitPolicy;
 use sil_tests::sil::Sil;
 use sil_tests::sim_plant::sitting_height_m;
 
@@ -97,12 +96,7 @@ fn assert_no_drop(sil: &mut Sil, t_reset: f32, down_s: f32, min_height_m: f32) {
 }
 
 fn reset_mid_walk(seed: u64, down_s: f32) {
-    let mut sil = Sil::new(seed).unwrap();
-    sil.stand_up().expect("stands up");
-    let mut gait = GaitPolicy::default();
-    sil.h.rc.set_sticks(0.6, 0.0, 0.0);
-    sil.run(1.0, &mut gait);
-    assert_eq!(sil.mode(), Mode::Walking);
+    let (mut sil, _gait) = Sil::walking_with_gait(seed);
     let t_reset = sil.time_s();
     sil.restart_controller(down_s, IWDG_RESET);
     assert_no_drop(&mut sil, t_reset, down_s, 0.22);

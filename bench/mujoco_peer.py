@@ -10,9 +10,20 @@ torques with noslip on; base displacement under the scripted gait).
 import json
 import sys
 import time
+import xml.etree.ElementTree as ET
 
 import mujoco
 import numpy as np
+
+
+def urdf_armature(job):
+    """The drives' armature: `hexapod:armature` on the URDF's <robot>. MuJoCo's URDF import
+    reads no armature, so build() sets it on every hinge; it must equal what host-sim read."""
+    root = ET.parse(job["urdf"]).getroot()
+    armature = float(root.attrib["{hexapod}armature"])
+    if abs(armature - job["armature_kg_m2"]) > 1e-9:
+        raise SystemExit(f"hexapod:armature {armature} differs from the job's {job['armature_kg_m2']}")
+    return armature
 
 
 def build(job, with_hfield):
@@ -21,9 +32,10 @@ def build(job, with_hfield):
     spec.option.gravity = [0.0, 0.0, -9.81]
     root = spec.worldbody.first_body()
     root.add_freejoint()
+    armature = urdf_armature(job)
     for j in spec.joints:
         if j.type == mujoco.mjtJoint.mjJNT_HINGE:
-            j.armature = job["armature_kg_m2"]
+            j.armature = armature
     if with_hfield:
         hf = job["hfield"]
         heights = np.array(hf["heights_m"], dtype=np.float64).reshape(hf["nrow"], hf["ncol"])
@@ -41,6 +53,8 @@ def build(job, with_hfield):
     names = job["joint_names"]
     qadr = np.array([model.jnt_qposadr[model.joint(n).id] for n in names])
     vadr = np.array([model.jnt_dofadr[model.joint(n).id] for n in names])
+    if not np.allclose(model.dof_armature[vadr], armature):
+        raise SystemExit(f"compiled joint armature {model.dof_armature[vadr]} is not {armature}")
     return model, data, qadr, vadr
 
 
@@ -83,7 +97,7 @@ def timed_walk(model, data, qadr, vadr, job, steps):
 
 def main():
     job = json.load(open(sys.argv[1]))
-    out = {"mujoco_version": mujoco.__version__}
+    out = {"mujoco_version": mujoco.__version__, "armature_kg_m2": urdf_armature(job)}
     # Fidelity: stand with noslip on (MuJoCo's soft friction otherwise lets loaded feet creep).
     model, data, qadr, vadr = build(job, False)
     model.opt.noslip_iterations = 10

@@ -20,5 +20,6 @@ pub mod rewards;
 pub mod robot;
 pub mod terrain;
 pub mod trajectory;
+pub mod urdf_gen;
 pub mod urdf_model;
 pub mod vec_env;

@@ -8,8 +8,8 @@
 //! yaw. Thigh and shank turn about the leg frame's y axis; positive angles move the foot
 //! down. Zero thigh and shank angles stretch the leg horizontally.
 //!
-//! `assets/hexapod.urdf` carries the same numbers for the simulator; a test in `host-sim`
-//! checks that the two agree.
+//! `assets/hexapod.urdf` is generated from these numbers (`hexapod-sim urdf`, checked fresh
+//! in CI with `--check`); `host-sim` also checks the file it loads against them.
 
 use core::f32::consts::FRAC_PI_4;
 
@@ -172,6 +172,12 @@ pub const SHANK_LENGTH_M: f32 = 0.22;
 pub const SHANK_MASS_KG: f32 = 0.35;
 /// Foot sphere radius.
 pub const FOOT_RADIUS_M: f32 = 0.02;
+/// Coxa radius (its inertia as a solid cylinder; the coxa has no collision shape).
+pub const COXA_RADIUS_M: f32 = 0.035;
+/// Thigh radius (a solid cylinder: inertia and collision shape).
+pub const THIGH_RADIUS_M: f32 = 0.03;
+/// Shank radius (a solid cylinder: inertia and collision shape; the foot sphere at its end).
+pub const SHANK_RADIUS_M: f32 = 0.018;
 /// Total mass of the robot.
 pub const TOTAL_MASS_KG: f32 = TRUNK_MASS_KG
     + 4.0 * 0.5

@@ -1,5 +1,6 @@
 //! `hexapod-sim`: the simulator's command line: a demo (stand, then walk a scripted tripod
-//! gait, with a CSV trajectory and plots) and the speed benchmark against MuJoCo.
+//! gait, with a CSV trajectory and plots), the speed benchmark against MuJoCo, and the URDF
+//! generated from hexapod-core.
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -30,11 +31,21 @@ enum Command {
     },
     /// Physics and environment steps per second, side by side with MuJoCo on the same URDF.
     Bench(host_sim::bench::BenchArgs),
+    /// Writes the robot's URDF from hexapod-core's robot definition (or checks it is fresh).
+    Urdf {
+        /// The URDF file.
+        #[arg(long, default_value = "assets/hexapod.urdf")]
+        out: PathBuf,
+        /// Only check that the file is up to date (exit 1 when stale).
+        #[arg(long)]
+        check: bool,
+    },
 }
 
 fn main() -> anyhow::Result<()> {
     match Cli::parse().command {
         Command::Demo { out, stand_s, walk_s, speed_m_s } => host_sim::demo::run(&out, stand_s, walk_s, speed_m_s),
         Command::Bench(args) => host_sim::bench::run(&args),
+        Command::Urdf { out, check } => host_sim::urdf_gen::write_or_check(&out, check),
     }
 }

@@ -2,8 +2,9 @@
 //!
 //! Reads a checkpoint ([`checkpoint`]) or an ONNX MLP ([`onnx`]), calibrates and
 //! quantizes it ([`quantize`]) for `hexapod_core::nn`, writes the generated crate
-//! ([`emit`]), reports fixed-point vs f32 accuracy ([`accuracy`]) and checks a firmware
-//! ELF against the STM32H743's memory map ([`size`]).
+//! ([`emit`]), reports fixed-point vs f32 accuracy ([`accuracy`]), exports the deployed
+//! networks as ONNX ([`onnx::export`]) and checks a firmware ELF against the STM32H743's
+//! memory map ([`size`]).
 
 pub mod accuracy;
 pub mod bench;

@@ -1,5 +1,5 @@
 //! `policy-codegen` CLI: random checkpoint, code generation (and its freshness check),
-//! accuracy report, ELF size budget.
+//! ONNX export, accuracy report, ELF size budget.
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
@@ -44,6 +44,20 @@ enum Cmd {
         /// Only check that the files on disk are up to date (exit 1 when stale).
         #[arg(long)]
         check: bool,
+    },
+    /// Writes the deployed networks (estimator, memory, actor, with the normalizers as
+    /// Sub/Div) as one ONNX model, `policy.onnx`, and `reference.json`: fixed inputs and
+    /// the f32 forward pass's outputs, for checking a runtime against the checkpoint.
+    ExportOnnx {
+        /// Checkpoint directory.
+        #[arg(long, default_value = policy_codegen::SHIPPED_CHECKPOINT)]
+        checkpoint: PathBuf,
+        /// Output directory.
+        #[arg(long, default_value = "runs/onnx")]
+        out: PathBuf,
+        /// Reference inputs (synthetic observations, seed 11).
+        #[arg(long, default_value_t = 16)]
+        count: usize,
     },
     /// Max |a_fixed - a_f32| over observations (synthetic, or a recording).
     Accuracy {
@@ -179,6 +193,42 @@ fn main() -> Result<()> {
                     prov.macs
                 );
             }
+        }
+        Cmd::ExportOnnx {
+            checkpoint: dir,
+            out,
+            count,
+        } => {
+            let ck = checkpoint::load(&dir)?;
+            let source = display_path(&dir);
+            let mut model = onnx::export_model(&ck.policy);
+            model.doc_string = format!(
+                "hexapod policy from {source} (policy.safetensors sha256 {}): actions = actor(concat((actor_obs - mean) / std, estimator(h), memory(h))), h = (history - mean) / std; the runtime clips actions to +-{}",
+                ck.sha256,
+                hexapod_core::obs::ACTION_CLIP
+            );
+            let bytes = prost::Message::encode_to_vec(&model);
+            // The model must read back as the same policy.
+            anyhow::ensure!(
+                onnx::import(&bytes)? == ck.policy,
+                "the exported model does not import as the checkpoint's policy"
+            );
+            std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+            let model_path = out.join("policy.onnx");
+            std::fs::write(&model_path, &bytes)
+                .with_context(|| format!("writing {}", model_path.display()))?;
+            let recs = records::synthetic(count, 11);
+            let reference = onnx::reference_json(&ck.policy, &recs, &source, &ck.sha256);
+            let ref_path = out.join("reference.json");
+            std::fs::write(&ref_path, reference)
+                .with_context(|| format!("writing {}", ref_path.display()))?;
+            println!(
+                "wrote {} ({} bytes, {} MACs) and {} ({count} inputs) from {source}",
+                model_path.display(),
+                bytes.len(),
+                ck.policy.macs(),
+                ref_path.display()
+            );
         }
         Cmd::Accuracy {
             checkpoint: dir,

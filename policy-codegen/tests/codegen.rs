@@ -289,12 +289,13 @@ fn onnx_matmul_add_graphs_import_like_gemm() {
     let model = ModelProto {
         ir_version: 8,
         producer_name: "test".into(),
+        doc_string: String::new(),
         graph: Some(GraphProto {
             node: nodes,
             name: "actor".into(),
             initializer,
-            input: vec![ValueInfoProto { name: "obs".into() }],
-            output: vec![ValueInfoProto { name: current }],
+            input: vec![ValueInfoProto::named("obs")],
+            output: vec![ValueInfoProto::named(&current)],
         }),
         opset_import: vec![],
     };
@@ -303,4 +304,86 @@ fn onnx_matmul_add_graphs_import_like_gemm() {
     let q = quantize_default(&imported).unwrap();
     let report = compare(&imported, &q, &records::synthetic(300, 4)).unwrap();
     assert!(report.max_abs_diff <= 2e-3, "{report:?}");
+}
+
+#[test]
+fn exported_policies_import_as_the_same_networks() {
+    // The shipped checkpoint (estimator, memory, actor, trained normalizers).
+    let shipped = checkpoint::load(&repo().join(policy_codegen::SHIPPED_CHECKPOINT))
+        .unwrap()
+        .policy;
+    let model = onnx::export_model(&shipped);
+    let graph = model.graph.as_ref().unwrap();
+    let names = |v: &[onnx::ValueInfoProto]| v.iter().map(|v| v.name.clone()).collect::<Vec<_>>();
+    assert_eq!(
+        names(&graph.input),
+        [onnx::ACTOR_OBS_INPUT, onnx::HISTORY_INPUT]
+    );
+    assert_eq!(
+        names(&graph.output),
+        [
+            onnx::ACTIONS_OUTPUT,
+            onnx::ESTIMATE_OUTPUT,
+            onnx::LATENT_OUTPUT
+        ]
+    );
+    assert!(graph
+        .input
+        .iter()
+        .chain(&graph.output)
+        .all(|v| v.r#type.is_some()));
+    let bytes = onnx::export(&shipped);
+    assert_eq!(onnx::import(&bytes).unwrap(), shipped);
+
+    // Without an estimator ("Baseline"), and actor-only.
+    let mut baseline = random_policy(&RandomSpec {
+        seed: 12,
+        estimator_hidden: None,
+        ..Default::default()
+    });
+    baseline.history_norm = empirical_normalizers(200).1;
+    assert!(baseline.estimator.layers.is_empty());
+    assert_eq!(onnx::import(&onnx::export(&baseline)).unwrap(), baseline);
+    let mut actor_only = random_policy(&RandomSpec {
+        seed: 13,
+        estimator_hidden: None,
+        memory_latent: 0,
+        actor_hidden: vec![32],
+        ..Default::default()
+    });
+    actor_only.estimator = Default::default();
+    actor_only.memory = Default::default();
+    let model = onnx::export_model(&actor_only);
+    assert_eq!(model.graph.as_ref().unwrap().input.len(), 1);
+    assert_eq!(
+        onnx::import(&onnx::export(&actor_only)).unwrap(),
+        actor_only
+    );
+
+    // The reference outputs are the f32 forward pass.
+    let recs = records::synthetic(3, 11);
+    let json = onnx::reference_json(&shipped, &recs, "x", "y");
+    let a0 = shipped
+        .trace(&recs[0].actor_obs, &recs[0].history)
+        .actor
+        .pop()
+        .unwrap();
+    assert!(json.contains(&format!("[{}", a0[0])), "{json:.200}");
+
+    // A graph whose Concat drops the latent is refused, naming the node.
+    let mut model = onnx::export_model(&shipped);
+    let concat = model
+        .graph
+        .as_mut()
+        .unwrap()
+        .node
+        .iter_mut()
+        .find(|n| n.op_type == "Concat")
+        .unwrap();
+    concat.input.pop();
+    let err = onnx::import(&prost::Message::encode_to_vec(&model))
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(err.contains("actor_input"), "{err}");
 }

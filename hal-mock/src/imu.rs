@@ -28,32 +28,9 @@ impl Default for ImuNoise {
 }
 
 /// Rotates a world vector into the base frame with the base orientation `q` (w, x, y, z;
-/// base -> world).
+/// base -> world): `hexapod_core::frames::world_to_base` on arrays.
 pub fn world_to_base(q: [f32; 4], v: [f32; 3]) -> [f32; 3] {
-    let [w, x, y, z] = q;
-    // R^T v with R from the unit quaternion.
-    let r = [
-        [
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y - w * z),
-            2.0 * (x * z + w * y),
-        ],
-        [
-            2.0 * (x * y + w * z),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z - w * x),
-        ],
-        [
-            2.0 * (x * z - w * y),
-            2.0 * (y * z + w * x),
-            1.0 - 2.0 * (x * x + y * y),
-        ],
-    ];
-    [
-        r[0][0] * v[0] + r[1][0] * v[1] + r[2][0] * v[2],
-        r[0][1] * v[0] + r[1][1] * v[1] + r[2][1] * v[2],
-        r[0][2] * v[0] + r[1][2] * v[1] + r[2][2] * v[2],
-    ]
+    hexapod_core::frames::world_to_base_wxyz(q, v)
 }
 
 /// The IMU model.

@@ -2,6 +2,9 @@
 //! accelerometer's gravity direction. Gives the projected gravity of the observation and
 //! the tilt the supervisor watches; yaw drifts and is not needed.
 
+use crate::math::{FloatFns, Libm};
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
+
 /// Standard gravity, m/s^2.
 pub const GRAVITY_M_S2: f32 = 9.806_65;
 
@@ -28,26 +31,31 @@ impl Default for AttitudeConfig {
     }
 }
 
-/// The filter state: orientation of the base in the world (unit quaternion w, x, y, z).
+/// The filter state: orientation of the base in the world (base -> world).
+///
+/// A Mahony filter written on nalgebra's types rather than taken from the `ahrs` crate:
+/// `ahrs` 0.8 depends on nalgebra 0.34 (rapier, and so this crate, use 0.35), integrates
+/// with a fixed sample period (the IMU's samples arrive with their own timestamps), has
+/// no accelerometer gating and starts from identity instead of the first reading
+/// (docs/decisions/0001-firmware-math-crates.md).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct AttitudeFilter {
     config: AttitudeConfig,
-    q: [f32; 4],
-    bias_integral: [f32; 3],
+    q: UnitQuaternion<f32>,
+    bias_integral: Vector3<f32>,
     initialized: bool,
 }
 
-fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn norm(v: [f32; 3]) -> f32 {
-    libm::sqrtf(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+/// The world's up axis in the base frame for a base -> world orientation: the third row
+/// of its rotation matrix (`R^T e_z`), without the rest of the matrix.
+pub fn up_in_base(q: &UnitQuaternion<f32>) -> Vector3<f32> {
+    let (w, x, y, z) = (q.w, q.i, q.j, q.k);
+    Vector3::new(
+        2.0 * (x * z - w * y),
+        2.0 * (w * x + y * z),
+        w * w - x * x - y * y + z * z,
+    )
 }
 
 impl AttitudeFilter {
@@ -55,8 +63,8 @@ impl AttitudeFilter {
     pub const fn new(config: AttitudeConfig) -> Self {
         Self {
             config,
-            q: [1.0, 0.0, 0.0, 0.0],
-            bias_integral: [0.0; 3],
+            q: UnitQuaternion::new_unchecked(Quaternion::new(1.0, 0.0, 0.0, 0.0)),
+            bias_integral: Vector3::new(0.0, 0.0, 0.0),
             initialized: false,
         }
     }
@@ -71,76 +79,100 @@ impl AttitudeFilter {
         self.initialized
     }
 
-    /// The world's up axis expressed in the base frame.
-    pub fn up_base(&self) -> [f32; 3] {
-        let [w, x, y, z] = self.q;
-        [
-            2.0 * (x * z - w * y),
-            2.0 * (w * x + y * z),
-            w * w - x * x - y * y + z * z,
-        ]
+    /// The estimated orientation, base -> world (yaw drifts).
+    pub fn orientation(&self) -> &UnitQuaternion<f32> {
+        &self.q
     }
 
-    /// Unit gravity direction in the base frame ([0, 0, -1] when level): the observation's
+    /// The estimated gyro bias correction (the integral term), rad/s.
+    pub fn bias_integral(&self) -> &Vector3<f32> {
+        &self.bias_integral
+    }
+
+    /// The world's up axis expressed in the base frame.
+    pub fn up(&self) -> Vector3<f32> {
+        up_in_base(&self.q)
+    }
+
+    /// Unit gravity direction in the base frame (-z when level): the observation's
     /// projected gravity.
+    pub fn gravity_base(&self) -> Vector3<f32> {
+        -self.up()
+    }
+
+    /// [`Self::up`] as an array (x, y, z).
+    pub fn up_base(&self) -> [f32; 3] {
+        self.up().into()
+    }
+
+    /// [`Self::gravity_base`] as an array (x, y, z).
     pub fn projected_gravity(&self) -> [f32; 3] {
-        let u = self.up_base();
-        [-u[0], -u[1], -u[2]]
+        self.gravity_base().into()
     }
 
     /// Angle between the base's z axis and the world's up axis, rad.
     pub fn tilt_rad(&self) -> f32 {
-        libm::acosf(self.up_base()[2].clamp(-1.0, 1.0))
+        self.tilt_rad_with::<Libm>()
+    }
+
+    /// [`Self::tilt_rad`] with the float functions of `F`.
+    pub fn tilt_rad_with<F: FloatFns>(&self) -> f32 {
+        F::acos(self.up().z.clamp(-1.0, 1.0))
     }
 
     /// Updates with a gyro (rad/s) and accelerometer (specific force, m/s^2) sample.
     pub fn update(&mut self, gyro_rad_s: [f32; 3], accel_m_s2: [f32; 3], dt_s: f32) {
-        if !(gyro_rad_s.iter().chain(&accel_m_s2).all(|v| v.is_finite()) && dt_s.is_finite()) {
+        self.update_with::<Libm>(&gyro_rad_s.into(), &accel_m_s2.into(), dt_s);
+    }
+
+    /// [`Self::update`] on nalgebra vectors with the float functions of `F`.
+    pub fn update_with<F: FloatFns>(
+        &mut self,
+        gyro_rad_s: &Vector3<f32>,
+        accel_m_s2: &Vector3<f32>,
+        dt_s: f32,
+    ) {
+        if !(gyro_rad_s
+            .iter()
+            .chain(accel_m_s2.iter())
+            .all(|v| v.is_finite())
+            && dt_s.is_finite())
+        {
             return;
         }
-        let a_norm = norm(accel_m_s2);
+        let a_norm = F::sqrt(accel_m_s2.norm_squared());
         let accel_ok = (a_norm - GRAVITY_M_S2).abs() <= self.config.accel_tolerance * GRAVITY_M_S2;
         if !self.initialized {
             if accel_ok {
-                self.align(accel_m_s2, a_norm);
+                self.align::<F>(accel_m_s2, a_norm);
             }
             return;
         }
-        let mut omega = gyro_rad_s;
+        let mut omega = *gyro_rad_s;
         if accel_ok {
-            let a = [
-                accel_m_s2[0] / a_norm,
-                accel_m_s2[1] / a_norm,
-                accel_m_s2[2] / a_norm,
-            ];
-            let e = cross(a, self.up_base());
-            for k in 0..3 {
-                self.bias_integral[k] += self.config.ki * e[k] * dt_s;
-                omega[k] += self.config.kp * e[k] + self.bias_integral[k];
-            }
+            let a = accel_m_s2 / a_norm;
+            let e = a.cross(&self.up());
+            self.bias_integral += e * self.config.ki * dt_s;
+            omega += e * self.config.kp + self.bias_integral;
         }
-        let [w, x, y, z] = self.q;
-        let h = 0.5 * dt_s;
-        let q = [
-            w + h * (-x * omega[0] - y * omega[1] - z * omega[2]),
-            x + h * (w * omega[0] + y * omega[2] - z * omega[1]),
-            y + h * (w * omega[1] - x * omega[2] + z * omega[0]),
-            z + h * (w * omega[2] + x * omega[1] - y * omega[0]),
-        ];
-        let n = libm::sqrtf(q.iter().map(|v| v * v).sum());
+        // q' = q + dt/2 q (0, omega), renormalized.
+        let q = self.q.quaternion();
+        let q = q + q * Quaternion::from_imag(omega) * (0.5 * dt_s);
+        let n = F::sqrt(q.norm_squared());
         if n > 0.0 && n.is_finite() {
-            self.q = q.map(|v| v / n);
+            self.q = UnitQuaternion::new_unchecked(q / n);
         }
     }
 
     /// Roll and pitch from a resting accelerometer reading.
-    fn align(&mut self, a: [f32; 3], a_norm: f32) {
-        let (ax, ay, az) = (a[0] / a_norm, a[1] / a_norm, a[2] / a_norm);
-        let roll = libm::atan2f(ay, az);
-        let pitch = libm::atan2f(-ax, libm::sqrtf(ay * ay + az * az));
-        let (sr, cr) = (libm::sinf(roll / 2.0), libm::cosf(roll / 2.0));
-        let (sp, cp) = (libm::sinf(pitch / 2.0), libm::cosf(pitch / 2.0));
-        self.q = [cr * cp, sr * cp, cr * sp, -sr * sp];
+    fn align<F: FloatFns>(&mut self, a: &Vector3<f32>, a_norm: f32) {
+        let a = a / a_norm;
+        let roll = F::atan2(a.y, a.z);
+        let pitch = F::atan2(-a.x, F::sqrt(a.y * a.y + a.z * a.z));
+        let (sr, cr) = (F::sin(roll / 2.0), F::cos(roll / 2.0));
+        let (sp, cp) = (F::sin(pitch / 2.0), F::cos(pitch / 2.0));
+        self.q =
+            UnitQuaternion::new_unchecked(Quaternion::new(cr * cp, sr * cp, cr * sp, -sr * sp));
         self.initialized = true;
     }
 }

@@ -8,9 +8,10 @@
 //! not move faster than the joints' velocity limits.
 
 use crate::nn::{Kernel, QuantizedPolicy, Scratch};
-use crate::obs::{proprio_obs, ProprioHistory, ACTION_CLIP, PROPRIO_DIM};
+use crate::obs::{proprio_obs_vec, ProprioHistory, ACTION_CLIP, PROPRIO_DIM};
 use crate::robot::{NUM_JOINTS, Q0_RAD, Q_MAX_RAD, Q_MIN_RAD, VELOCITY_LIMIT_RAD_S};
 use crate::timing::{ACTION_SCALE_RAD, POLICY_DT_S};
+use nalgebra::Vector3;
 
 /// A locomotion policy: command, previous action and history -> action (18, unscaled).
 pub trait Policy {
@@ -75,6 +76,18 @@ pub struct Sensors {
     pub q_rad: [f32; NUM_JOINTS],
     /// Joint velocities, rad/s.
     pub qdot_rad_s: [f32; NUM_JOINTS],
+}
+
+impl Sensors {
+    /// The gyro's angular velocity as a vector (base frame, rad/s).
+    pub fn ang_vel_base(&self) -> Vector3<f32> {
+        self.ang_vel_base_rad_s.into()
+    }
+
+    /// The projected gravity as a vector (base frame, unit).
+    pub fn gravity(&self) -> Vector3<f32> {
+        self.gravity_base.into()
+    }
 }
 
 /// Why a control step produced no targets.
@@ -161,9 +174,9 @@ impl ControlStep {
         if !finite {
             return Err(ControlError::NonFiniteObservation);
         }
-        let o: [f32; PROPRIO_DIM] = proprio_obs(
-            sensors.ang_vel_base_rad_s,
-            sensors.gravity_base,
+        let o: [f32; PROPRIO_DIM] = proprio_obs_vec(
+            &sensors.ang_vel_base(),
+            &sensors.gravity(),
             &sensors.q_rad,
             &sensors.qdot_rad_s,
         );

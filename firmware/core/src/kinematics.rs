@@ -1,36 +1,51 @@
 //! Leg kinematics: foot positions from joint angles (forward) and joint angles from foot
 //! positions (inverse, knee-down branch). Angles in radians, positions in metres, base frame.
 
+use crate::math::{FloatFns, Libm};
 use crate::robot::{
     Leg, COXA_LENGTH_M, HIP_POS_BASE_M, JOINTS_PER_LEG, MOUNT_YAW_RAD, NUM_JOINTS, NUM_LEGS,
     SHANK_LENGTH_M, THIGH_LENGTH_M,
 };
-use libm::{acosf, atan2f, cosf, sinf, sqrtf};
+use nalgebra::{Point3, Vector3};
 
-/// Foot sphere centre of one leg in the base frame.
-pub fn foot_position_base(leg: Leg, q_leg_rad: [f32; JOINTS_PER_LEG]) -> [f32; 3] {
+/// The hip (yaw axis on the trunk) of `leg` in the base frame, m.
+pub fn hip_position(leg: Leg) -> Point3<f32> {
+    HIP_POS_BASE_M[leg.index()].into()
+}
+
+/// Foot sphere centre of `leg` in the base frame from its joint angles (hip, thigh, shank).
+pub fn foot_position(leg: Leg, q_leg_rad: &Vector3<f32>) -> Point3<f32> {
+    foot_position_with::<Libm>(leg, q_leg_rad)
+}
+
+/// [`foot_position`] with the float functions of `F`.
+pub fn foot_position_with<F: FloatFns>(leg: Leg, q_leg_rad: &Vector3<f32>) -> Point3<f32> {
     let i = leg.index();
-    let [hip, thigh, shank] = q_leg_rad;
+    let (hip, thigh, shank) = (q_leg_rad.x, q_leg_rad.y, q_leg_rad.z);
     let yaw = MOUNT_YAW_RAD[i] + hip;
+    // In the leg's vertical plane: out along the coxa and thigh, down to the foot.
     let radial_m =
-        COXA_LENGTH_M[i] + THIGH_LENGTH_M * cosf(thigh) + SHANK_LENGTH_M * cosf(thigh + shank);
-    let down_m = THIGH_LENGTH_M * sinf(thigh) + SHANK_LENGTH_M * sinf(thigh + shank);
-    let hip_pos = HIP_POS_BASE_M[i];
-    [
-        hip_pos[0] + radial_m * cosf(yaw),
-        hip_pos[1] + radial_m * sinf(yaw),
-        hip_pos[2] - down_m,
-    ]
+        COXA_LENGTH_M[i] + THIGH_LENGTH_M * F::cos(thigh) + SHANK_LENGTH_M * F::cos(thigh + shank);
+    let down_m = THIGH_LENGTH_M * F::sin(thigh) + SHANK_LENGTH_M * F::sin(thigh + shank);
+    hip_position(leg) + Vector3::new(radial_m * F::cos(yaw), radial_m * F::sin(yaw), -down_m)
+}
+
+/// Foot sphere centre of one leg in the base frame ([`foot_position`] on arrays).
+pub fn foot_position_base(leg: Leg, q_leg_rad: [f32; JOINTS_PER_LEG]) -> [f32; 3] {
+    foot_position(leg, &q_leg_rad.into()).coords.into()
 }
 
 /// Foot sphere centres of all legs in the base frame, from joint angles in joint order.
-pub fn foot_positions_base(q_rad: &[f32; NUM_JOINTS]) -> [[f32; 3]; NUM_LEGS] {
-    let mut out = [[0.0; 3]; NUM_LEGS];
-    for leg in Leg::ALL {
+pub fn foot_positions(q_rad: &[f32; NUM_JOINTS]) -> [Point3<f32>; NUM_LEGS] {
+    Leg::ALL.map(|leg| {
         let j = JOINTS_PER_LEG * leg.index();
-        out[leg.index()] = foot_position_base(leg, [q_rad[j], q_rad[j + 1], q_rad[j + 2]]);
-    }
-    out
+        foot_position(leg, &Vector3::new(q_rad[j], q_rad[j + 1], q_rad[j + 2]))
+    })
+}
+
+/// [`foot_positions`] as arrays.
+pub fn foot_positions_base(q_rad: &[f32; NUM_JOINTS]) -> [[f32; 3]; NUM_LEGS] {
+    foot_positions(q_rad).map(|p| p.coords.into())
 }
 
 /// Why a foot position has no joint solution.
@@ -44,19 +59,23 @@ pub enum IkError {
 
 /// Joint angles (hip, thigh, shank) that put the foot of `leg` at `foot_base_m`,
 /// knee-down branch (shank angle >= 0). Hip yaw is wrapped to (-pi, pi].
-pub fn leg_inverse_kinematics(
+pub fn inverse_kinematics(leg: Leg, foot_base_m: &Point3<f32>) -> Result<Vector3<f32>, IkError> {
+    inverse_kinematics_with::<Libm>(leg, foot_base_m)
+}
+
+/// [`inverse_kinematics`] with the float functions of `F`.
+pub fn inverse_kinematics_with<F: FloatFns>(
     leg: Leg,
-    foot_base_m: [f32; 3],
-) -> Result<[f32; JOINTS_PER_LEG], IkError> {
+    foot_base_m: &Point3<f32>,
+) -> Result<Vector3<f32>, IkError> {
     let i = leg.index();
-    let hip_pos = HIP_POS_BASE_M[i];
-    let dx = foot_base_m[0] - hip_pos[0];
-    let dy = foot_base_m[1] - hip_pos[1];
-    let horizontal_m = sqrtf(dx * dx + dy * dy);
+    let hip_m = hip_position(leg);
+    let d = foot_base_m - hip_m;
+    let horizontal_m = F::sqrt(d.x * d.x + d.y * d.y);
     if horizontal_m < 1e-6 {
         return Err(IkError::Singular);
     }
-    let mut hip = atan2f(dy, dx) - MOUNT_YAW_RAD[i];
+    let mut hip = F::atan2(d.y, d.x) - MOUNT_YAW_RAD[i];
     while hip > core::f32::consts::PI {
         hip -= 2.0 * core::f32::consts::PI;
     }
@@ -64,16 +83,24 @@ pub fn leg_inverse_kinematics(
         hip += 2.0 * core::f32::consts::PI;
     }
     let radial_m = horizontal_m - COXA_LENGTH_M[i];
-    let down_m = hip_pos[2] - foot_base_m[2];
+    let down_m = hip_m.z - foot_base_m.z;
     let (lt, ls) = (THIGH_LENGTH_M, SHANK_LENGTH_M);
     let dist_sq = radial_m * radial_m + down_m * down_m;
     let cos_shank = (dist_sq - lt * lt - ls * ls) / (2.0 * lt * ls);
     if !(-1.0..=1.0).contains(&cos_shank) {
         return Err(IkError::OutOfReach);
     }
-    let shank = acosf(cos_shank);
-    let thigh = atan2f(down_m, radial_m) - atan2f(ls * sinf(shank), lt + ls * cosf(shank));
-    Ok([hip, thigh, shank])
+    let shank = F::acos(cos_shank);
+    let thigh = F::atan2(down_m, radial_m) - F::atan2(ls * F::sin(shank), lt + ls * F::cos(shank));
+    Ok(Vector3::new(hip, thigh, shank))
+}
+
+/// [`inverse_kinematics`] on arrays.
+pub fn leg_inverse_kinematics(
+    leg: Leg,
+    foot_base_m: [f32; 3],
+) -> Result<[f32; JOINTS_PER_LEG], IkError> {
+    inverse_kinematics(leg, &foot_base_m.into()).map(Into::into)
 }
 
 #[cfg(test)]

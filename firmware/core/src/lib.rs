@@ -14,8 +14,10 @@ pub mod can_frame;
 pub mod canopen;
 pub mod control;
 pub mod controller;
+pub mod frames;
 pub mod hal;
 pub mod kinematics;
+pub mod math;
 pub mod nets;
 pub mod nn;
 pub mod obs;
@@ -24,4 +26,6 @@ pub mod robot;
 pub mod supervisor;
 pub mod timing;
 
+/// The nalgebra the core is written on (the version rapier uses on the host).
+pub use nalgebra;
 pub use robot::{Joint, Leg, NUM_JOINTS, NUM_LEGS};

@@ -6,6 +6,7 @@
 
 use crate::robot::{NUM_JOINTS, Q0_RAD};
 use core::ops::Range;
+use nalgebra::Vector3;
 
 // ---------------------------------------------------------------------------------------
 // Scales (legged_gym's `normalization.obs_scales`).
@@ -129,11 +130,25 @@ pub fn proprio_obs(
     q_rad: &[f32; NUM_JOINTS],
     qdot_rad_s: &[f32; NUM_JOINTS],
 ) -> [f32; PROPRIO_DIM] {
+    proprio_obs_vec(
+        &ang_vel_base_rad_s.into(),
+        &gravity_base.into(),
+        q_rad,
+        qdot_rad_s,
+    )
+}
+
+/// [`proprio_obs`] with the base's angular velocity (base frame, rad/s) and the unit
+/// gravity direction (base frame) as nalgebra vectors.
+pub fn proprio_obs_vec(
+    ang_vel_base_rad_s: &Vector3<f32>,
+    gravity_base: &Vector3<f32>,
+    q_rad: &[f32; NUM_JOINTS],
+    qdot_rad_s: &[f32; NUM_JOINTS],
+) -> [f32; PROPRIO_DIM] {
     let mut o = [0.0; PROPRIO_DIM];
-    for k in 0..3 {
-        o[PROPRIO_ANG_VEL.start + k] = ang_vel_base_rad_s[k] * ANG_VEL_SCALE;
-        o[PROPRIO_GRAVITY.start + k] = gravity_base[k] * GRAVITY_SCALE;
-    }
+    o[PROPRIO_ANG_VEL].copy_from_slice((ang_vel_base_rad_s * ANG_VEL_SCALE).as_slice());
+    o[PROPRIO_GRAVITY].copy_from_slice((gravity_base * GRAVITY_SCALE).as_slice());
     for j in 0..NUM_JOINTS {
         o[PROPRIO_JOINT_POS.start + j] = (q_rad[j] - Q0_RAD[j]) * JOINT_POS_SCALE;
         o[PROPRIO_JOINT_VEL.start + j] = qdot_rad_s[j] * JOINT_VEL_SCALE;
@@ -183,7 +198,9 @@ pub struct ProprioHistory {
 impl ProprioHistory {
     /// A history filled with one observation (as after a reset).
     pub fn filled_with(obs: &[f32; PROPRIO_DIM]) -> Self {
-        Self { frames: [*obs; HISTORY_LEN] }
+        Self {
+            frames: [*obs; HISTORY_LEN],
+        }
     }
 
     /// Drops the oldest observation and appends `obs` as the newest.

@@ -5,7 +5,13 @@
 //! calibrates instructions per SysTick tick with a loop of known length, then times one
 //! policy step with the SMLALD kernel and one with the portable kernel, and prints the
 //! raw fixed-point actions (the host check compares them bit for bit), instructions per
-//! step and per multiply-accumulate. It exits through semihosting (status 0 on success).
+//! step and per multiply-accumulate. Then the control path without the network, with the
+//! core's float functions (`libm`) against micromath and against `libm` with the FPU's
+//! square root ([`control_path`]): 20 attitude-filter updates (1 kHz IMU in a 20 ms
+//! period), the tilt, and the control step (observation, history, input quantization,
+//! clamps) with a policy that only quantizes; the filter's state after a 2 s IMU sequence
+//! must equal the host's bit for bit (`hexapod_core::math::bench`). It exits through
+//! semihosting (status 0 on success).
 #![no_std]
 #![no_main]
 
@@ -18,13 +24,15 @@ use hexapod_core::nn::bench::bench_input;
 use hexapod_core::nn::{Kernel, Scratch};
 use hexapod_policy::{MACS, POLICY, SCRATCH_WORDS};
 
+mod control_path;
+
 /// Seed of the benchmark input (the host check uses the same).
 const INPUT_SEED: u32 = 7;
 /// Iterations of the calibration loop (2 instructions each).
 const CALIBRATION_LOOPS: u32 = 50_000;
 
 /// SysTick ticks elapsed since `start` (the counter counts down, 24 bits).
-fn ticks_since(start: u32) -> u32 {
+pub(crate) fn ticks_since(start: u32) -> u32 {
     start.wrapping_sub(SYST::get_current()) & 0x00ff_ffff
 }
 
@@ -155,7 +163,8 @@ fn run() -> Result<(), ()> {
             .ok();
         }
     }
-    Ok(())
+
+    control_path::run(&mut out, empty, insns_per_tick)
 }
 
 #[panic_handler]

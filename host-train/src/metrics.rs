@@ -1,5 +1,9 @@
 //! Training metrics: one row per iteration, written as CSV (columns are the union of all
-//! keys seen) and drawn as PNG line plots, one file per group of related series.
+//! keys seen) and drawn as PNG line plots, one file per group of related series. Beside
+//! `metrics.csv` the same rows go to a TensorBoard event file ([`tfevents`]), one scalar
+//! per key (`group/name`) with the iteration as the step.
+
+pub mod tfevents;
 
 use plotters::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};
@@ -21,6 +25,8 @@ pub const PLOT_GROUPS: &[(&str, &[&str])] = &[
 #[derive(Default)]
 pub struct MetricsLog {
     rows: Vec<BTreeMap<String, f64>>,
+    /// The event file beside the CSV, appended to on each write.
+    events: std::sync::Mutex<Option<tfevents::EventFile>>,
 }
 
 impl MetricsLog {
@@ -58,7 +64,20 @@ impl MetricsLog {
             out.push_str(&line.join(","));
             out.push('\n');
         }
-        std::fs::write(path, out)
+        std::fs::write(path, out)?;
+        self.write_events(path.parent().unwrap_or(Path::new(".")))
+    }
+
+    /// Appends the rows not yet written to the TensorBoard event file in `dir` (created on
+    /// the first call, `events.out.tfevents.*`).
+    fn write_events(&self, dir: &Path) -> std::io::Result<()> {
+        let mut events = self.events.lock().unwrap_or_else(|e| e.into_inner());
+        if events.as_ref().is_none_or(|f| f.path.parent() != Some(dir)) {
+            *events = Some(tfevents::EventFile::create(dir)?);
+        }
+        let file = events.as_mut().expect("created above");
+        let from = file.rows_written.min(self.rows.len());
+        file.append(&self.rows[from..])
     }
 
     /// Reads a `metrics.csv` written by [`MetricsLog::write_csv`]; empty cells are missing
@@ -169,6 +188,25 @@ pub fn line_plot(path: &Path, title: &str, x_label: &str, series: &[(String, Vec
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn event_file_beside_the_csv_gets_each_row_once() {
+        let dir = std::env::temp_dir().join(format!("hexapod-metrics-tb-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut log = MetricsLog::new();
+        log.push(BTreeMap::from([("iteration".into(), 0.0), ("loss/value".into(), 1.5)]));
+        log.write_csv(&dir.join("metrics.csv")).unwrap();
+        log.push(BTreeMap::from([("iteration".into(), 1.0), ("loss/value".into(), 1.25)]));
+        log.write_csv(&dir.join("metrics.csv")).unwrap();
+        let files: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).filter(|p| p.to_string_lossy().contains("tfevents")).collect();
+        assert_eq!(files.len(), 1, "{files:?}");
+        let bytes = std::fs::read(&files[0]).unwrap();
+        // The file-version record and one scalars record per row.
+        let expect: usize = [tfevents::file_version_event(0.0), tfevents::scalars_event(0.0, 0, &[("loss/value", 1.5)]), tfevents::scalars_event(0.0, 1, &[("loss/value", 1.25)])].iter().map(|e| e.len() + 16).sum();
+        assert_eq!(bytes.len(), expect);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 
     #[test]
     fn csv_has_the_union_of_columns() {

@@ -295,4 +295,17 @@ mod tests {
         );
         UrdfModel::from_xml(Path::new("generated"), generate()).unwrap();
     }
+
+    #[test]
+    fn check_names_the_stale_file_and_line() {
+        let path =
+            std::env::temp_dir().join(format!("hexapod-urdf-gen-{}.urdf", std::process::id()));
+        write_or_check(&path, false).unwrap();
+        write_or_check(&path, true).unwrap();
+        let edited = generate().replacen("<mass value=\"14.8\"/>", "<mass value=\"14.9\"/>", 1);
+        std::fs::write(&path, edited).unwrap();
+        let err = write_or_check(&path, true).unwrap_err().to_string();
+        assert!(err.contains("is stale") && err.contains("line 11"), "{err}");
+        let _ = std::fs::remove_file(&path);
+    }
 }

@@ -58,6 +58,11 @@ pub fn up_in_base(q: &UnitQuaternion<f32>) -> Vector3<f32> {
     )
 }
 
+/// `x^2 + y^2 + z^2`, summed in that order.
+fn norm_squared(v: &Vector3<f32>) -> f32 {
+    v.x * v.x + v.y * v.y + v.z * v.z
+}
+
 impl AttitudeFilter {
     /// A filter that initialises from its first accelerometer sample.
     pub const fn new(config: AttitudeConfig) -> Self {
@@ -140,7 +145,7 @@ impl AttitudeFilter {
         {
             return;
         }
-        let a_norm = F::sqrt(accel_m_s2.norm_squared());
+        let a_norm = F::sqrt(norm_squared(accel_m_s2));
         let accel_ok = (a_norm - GRAVITY_M_S2).abs() <= self.config.accel_tolerance * GRAVITY_M_S2;
         if !self.initialized {
             if accel_ok {
@@ -155,12 +160,26 @@ impl AttitudeFilter {
             self.bias_integral += e * self.config.ki * dt_s;
             omega += e * self.config.kp + self.bias_integral;
         }
-        // q' = q + dt/2 q (0, omega), renormalized.
-        let q = self.q.quaternion();
-        let q = q + q * Quaternion::from_imag(omega) * (0.5 * dt_s);
-        let n = F::sqrt(q.norm_squared());
+        // q' = q + dt/2 q (0, omega), renormalized. Written out in (w, x, y, z) order
+        // rather than with nalgebra's quaternion product and norm (storage order x, y, z,
+        // w), so the results keep their bits from the array version of this filter.
+        let (w, x, y, z) = (self.q.w, self.q.i, self.q.j, self.q.k);
+        let h = 0.5 * dt_s;
+        let (ox, oy, oz) = (omega.x, omega.y, omega.z);
+        let q = [
+            w + h * (-x * ox - y * oy - z * oz),
+            x + h * (w * ox + y * oz - z * oy),
+            y + h * (w * oy - x * oz + z * ox),
+            z + h * (w * oz + x * oy - y * ox),
+        ];
+        let n = F::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
         if n > 0.0 && n.is_finite() {
-            self.q = UnitQuaternion::new_unchecked(q / n);
+            self.q = UnitQuaternion::new_unchecked(Quaternion::new(
+                q[0] / n,
+                q[1] / n,
+                q[2] / n,
+                q[3] / n,
+            ));
         }
     }
 

@@ -237,8 +237,17 @@ pub struct AmpConfig {
     pub replay_buffer_size: usize,
     /// Prior source.
     pub prior_kind: PriorKind,
-    /// Directory of the motion-prior clips (relative to the working directory).
+    /// Directory of the motion-prior clips (relative to the working directory, or else to
+    /// the workspace root).
     pub priors_dir: String,
+    /// Which states of the clips the discriminator sees and episodes start from: `tracked`
+    /// (the simulator performing each clip with its drives: states the robot can reach)
+    /// or `optimized` (the trajectory optimization's frames, as the paper's dataset).
+    pub prior_states: crate::priors::dataset::PriorStates,
+    /// Let the discriminator's Adam follow the policy's learning rate (the adaptive KL
+    /// schedule), as AMP_for_hardware does with one optimizer for both, instead of the
+    /// fixed `learning_rate`.
+    pub follow_policy_learning_rate: bool,
 }
 
 impl Default for AmpConfig {
@@ -254,6 +263,8 @@ impl Default for AmpConfig {
             replay_buffer_size: 100_000,
             prior_kind: PriorKind::Dataset,
             priors_dir: "assets/priors".into(),
+            prior_states: crate::priors::dataset::PriorStates::Tracked,
+            follow_policy_learning_rate: false,
         }
     }
 }
@@ -447,5 +458,21 @@ mod tests {
         let err = TrainConfig::from_toml_str("[env]\nnum_envs = 3\n[ppo]\nnum_mini_batches = 4\nnum_steps_per_env = 3\n", "x")
             .unwrap_err();
         assert!(err.to_string().contains("divisible"), "{err}");
+    }
+}
+
+/// A path from a config or the command line: as given when it exists (relative to the
+/// working directory) or is absolute, else relative to the workspace root, so the CLI works
+/// from any directory of the checkout.
+pub fn resolve_path(path: &str) -> std::path::PathBuf {
+    let given = Path::new(path);
+    if given.is_absolute() || given.exists() {
+        return given.to_path_buf();
+    }
+    let from_root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(given);
+    if from_root.exists() {
+        from_root
+    } else {
+        given.to_path_buf()
     }
 }

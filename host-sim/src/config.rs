@@ -121,6 +121,10 @@ pub struct EnvConfig {
     pub randomization: RandomizationConfig,
     /// Pushes.
     pub push: PushConfig,
+    /// Probability that an episode starts from a random reference state (a prior's pose
+    /// and velocities) instead of standing at the nominal pose, when the learner has given
+    /// reference states (AMP's reference state initialization; AMP_for_hardware uses 0.85).
+    pub reference_init_probability: f32,
 }
 
 impl Default for EnvConfig {
@@ -138,6 +142,7 @@ impl Default for EnvConfig {
             commands: CommandConfig::default(),
             rewards: RewardScales::default(),
             randomization: RandomizationConfig::default(),
+            reference_init_probability: 0.0,
             push: PushConfig::default(),
         }
     }
@@ -205,6 +210,9 @@ impl EnvConfig {
         }
         if self.solver_iterations == 0 {
             return Err(bad("solver_iterations", "must be at least 1".into()));
+        }
+        if !(0.0..=1.0).contains(&self.reference_init_probability) {
+            return Err(bad("reference_init_probability", format!("{} is not a probability in [0, 1]", self.reference_init_probability)));
         }
         let ranges = [
             ("commands.lin_vel_x_m_s", self.commands.lin_vel_x_m_s),

@@ -4,7 +4,8 @@
 
 use crate::config::{ConfigError, EnvConfig};
 use crate::curriculum::{curriculum_step, CommandProgress, LevelChange};
-use crate::frames::{quat_from_yaw, rotate_inverse, yaw_rad};
+use crate::frames::{quat_from_yaw, quat_mul, rotate, rotate_inverse, yaw_rad};
+use crate::reference::ReferenceState;
 use crate::rewards::{self, RewardInputs, TERM_NAMES};
 use crate::robot::{BuildError, ContactState, DriveParams, RobotState, RobotWorld};
 use crate::terrain::Terrain;
@@ -73,6 +74,7 @@ struct Slot {
     column: usize,
     origin_m: [f32; 2],
     spawn_pose: Option<SpawnPose>,
+    references: Arc<[ReferenceState]>,
     command_progress: CommandProgress,
     command: [f32; 3],
     action: [f32; NUM_JOINTS],
@@ -154,6 +156,7 @@ impl HexapodEnv {
                     column: i % columns,
                     origin_m: [0.0; 2],
                     spawn_pose: None,
+                    references: Arc::from(Vec::new()),
                     command_progress: CommandProgress::default(),
                     command: [0.0; 3],
                     action: [0.0; NUM_JOINTS],
@@ -233,6 +236,14 @@ impl HexapodEnv {
         self.slots[i].spawn_pose = pose;
     }
 
+    /// The reference states episodes may start from (reference state initialization, with
+    /// probability `reference_init_probability` per reset), shared by all robots.
+    pub fn set_reference_states(&mut self, states: Arc<[ReferenceState]>) {
+        for slot in &mut self.slots {
+            slot.references = states.clone();
+        }
+    }
+
     /// Reseeds robot `i`'s random generator (randomization, noise, commands, pushes), so
     /// that robots in different slots can draw the same dynamics (evaluation: trial k of
     /// every test gets the same robot).
@@ -290,6 +301,10 @@ impl HexapodEnv {
 impl VecEnv for HexapodEnv {
     fn num_envs(&self) -> usize {
         self.slots.len()
+    }
+
+    fn set_reference_states(&mut self, states: Arc<[ReferenceState]>) {
+        HexapodEnv::set_reference_states(self, states);
     }
 
     fn reset(&mut self) -> Observations {
@@ -365,9 +380,9 @@ impl VecEnv for HexapodEnv {
 /// [`SPAWN_HEIGHT_M`] above the ground under the base, or higher where a foot would
 /// otherwise start inside the ground under it (a foot over the first step of a stair tile,
 /// or over a block). A foot spawned inside a heightfield falls through it.
-fn spawn_height_m(terrain: &Terrain, xy: [f32; 2], yaw_rad: f32, q: &[f32; NUM_JOINTS]) -> f32 {
+fn spawn_height_m(terrain: &Terrain, xy: [f32; 2], yaw_rad: f32, q: &[f32; NUM_JOINTS], min_height_m: f32) -> f32 {
     let (sin, cos) = yaw_rad.sin_cos();
-    let mut z = terrain.height_at_m(xy[0], xy[1]) + SPAWN_HEIGHT_M;
+    let mut z = terrain.height_at_m(xy[0], xy[1]) + min_height_m;
     for leg in Leg::ALL {
         let j = 3 * leg.index();
         let p = foot_position_base(leg, [q[j], q[j + 1], q[j + 2]]);
@@ -461,13 +476,27 @@ impl Slot {
                     .clamp(Q_MIN_RAD[j], Q_MAX_RAD[j]);
             }
         }
-        let z = spawn_height_m(&self.terrain, [x, y], yaw, &q);
-        self.robot.reset([x, y, z], quat_from_yaw(yaw), &q);
+        let reference = self.draw_reference(config);
+        self.action = [0.0; NUM_JOINTS];
+        if let Some(r) = reference {
+            // Reference state initialization: the prior's pose and velocities, tilted as in
+            // the prior, at this spawn's position and heading, feet just above the ground.
+            q = r.q_rad;
+            let quat = quat_mul(quat_from_yaw(yaw), r.tilt_quat_xyzw());
+            let z = spawn_height_m(&self.terrain, [x, y], yaw, &q, r.base_height_m);
+            self.robot.reset([x, y, z], quat, &q);
+            self.robot.set_velocities(rotate(quat, r.lin_vel_base_m_s), rotate(quat, r.ang_vel_base_rad_s), &r.qdot_rad_s);
+            for j in 0..NUM_JOINTS {
+                self.action[j] = ((q[j] - Q0_RAD[j]) / ACTION_SCALE_RAD).clamp(-ACTION_CLIP, ACTION_CLIP);
+            }
+        } else {
+            let z = spawn_height_m(&self.terrain, [x, y], yaw, &q, SPAWN_HEIGHT_M);
+            self.robot.reset([x, y, z], quat_from_yaw(yaw), &q);
+        }
         self.command_progress = CommandProgress::default();
         self.sample_command(config);
-        self.action = [0.0; NUM_JOINTS];
-        self.prev_action = [0.0; NUM_JOINTS];
-        self.last_qdot = [0.0; NUM_JOINTS];
+        self.prev_action = self.action;
+        self.last_qdot = reference.map_or([0.0; NUM_JOINTS], |r| r.qdot_rad_s);
         self.step = 0;
         self.last_push_m_s = [0.0; 3];
         self.term_sums = [0.0; TERM_NAMES.len()];
@@ -476,6 +505,15 @@ impl Slot {
         let proprio = self.proprio(config);
         self.history = ProprioHistory::filled_with(&proprio);
         self.observe(proprio);
+    }
+
+    /// A reference state to start from, with probability `reference_init_probability`.
+    fn draw_reference(&mut self, config: &EnvConfig) -> Option<ReferenceState> {
+        if config.reference_init_probability <= 0.0 || self.references.is_empty() {
+            return None;
+        }
+        let pick = self.rng.gen_range(0..self.references.len());
+        (self.rng.gen::<f32>() < config.reference_init_probability).then(|| self.references[pick])
     }
 
     /// o^p of the current state, with noise when configured.
@@ -538,7 +576,7 @@ impl Slot {
             let h = self.terrain.height_at_m(bx + cos * px - sin * py, by + sin * px + cos * py);
             self.heights[k] = (bz - HEIGHT_SCAN_OFFSET_M - h).clamp(-1.0, 1.0) * HEIGHT_SCALE;
         }
-        self.amp = amp_state(&s.q_rad, &s.qdot_rad_s, lin_vel, ang_vel, height);
+        self.amp = amp_state(&s.q_rad, &s.qdot_rad_s, lin_vel, ang_vel, rotate_inverse(s.base_quat_xyzw, [0.0, 0.0, 1.0]));
     }
 
     fn step(&mut self, config: &EnvConfig, action: &[f32], max_steps: usize) -> SlotStep {
@@ -608,8 +646,7 @@ impl Slot {
             || !finite;
         let time_out = self.step >= max_steps;
         let done = terminated || time_out;
-        let height = self.base_height_m();
-        let amp_next = amp_state(&s.q_rad, &s.qdot_rad_s, lin_vel, ang_vel, height);
+        let amp_next = amp_state(&s.q_rad, &s.qdot_rad_s, lin_vel, ang_vel, rotate_inverse(s.base_quat_xyzw, [0.0, 0.0, 1.0]));
         self.last_qdot = s.qdot_rad_s;
         self.prev_action = self.action;
 

@@ -42,3 +42,15 @@ mod tests {
         assert!((back[0] - 1.0).abs() < 1e-6 && back[1].abs() < 1e-6);
     }
 }
+
+/// The Hamilton product `a b` (rotate by `b`, then by `a`).
+pub fn quat_mul(a: [f32; 4], b: [f32; 4]) -> [f32; 4] {
+    let [ax, ay, az, aw] = a;
+    let [bx, by, bz, bw] = b;
+    [
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    ]
+}

@@ -16,6 +16,7 @@ pub mod frames;
 pub mod gait;
 pub mod peer;
 pub mod plot;
+pub mod reference;
 pub mod rewards;
 pub mod robot;
 pub mod terrain;

@@ -476,6 +476,35 @@ impl RobotWorld {
         self.link_bodies.len()
     }
 
+    /// Sets the base's velocity (its origin's linear velocity and the angular velocity,
+    /// world frame) and the joint velocities; after [`RobotWorld::reset`], to start from a
+    /// moving state (reference state initialization).
+    pub fn set_velocities(&mut self, lin_vel_world_m_s: [f32; 3], ang_vel_world_rad_s: [f32; 3], qdot_rad_s: &[f32; NUM_JOINTS]) {
+        let base = self.base;
+        let (p, com) = {
+            let rb = &self.world.bodies[base];
+            (rb.translation(), rb.center_of_mass())
+        };
+        let w = Vector::new(ang_vel_world_rad_s[0], ang_vel_world_rad_s[1], ang_vel_world_rad_s[2]);
+        // The root's generalized velocity is its centre of mass's.
+        let v = Vector::new(lin_vel_world_m_s[0], lin_vel_world_m_s[1], lin_vel_world_m_s[2]) + w.cross(com - p);
+        let dof_of_joint = self.dof_of_joint;
+        {
+            let mb = self.multibody_mut();
+            let mut gv = mb.generalized_velocity_mut();
+            for k in 0..3 {
+                gv[k] = v[k];
+                gv[3 + k] = w[k];
+            }
+            for j in 0..NUM_JOINTS {
+                gv[dof_of_joint[j]] = qdot_rad_s[j];
+            }
+        }
+        let rb = &mut self.world.bodies[base];
+        rb.set_linvel(v, true);
+        rb.set_angvel(w, true);
+    }
+
     /// Changes the base velocity by `dv_world_m_s` (a push).
     pub fn push(&mut self, dv_world_m_s: [f32; 3]) {
         let mb = self.multibody_mut();

@@ -50,4 +50,7 @@ pub trait VecEnv {
     fn reset(&mut self) -> Observations;
     /// Applies `actions` (`[N, 18]`) for one policy step (decimation physics steps).
     fn step(&mut self, actions: &[f32]) -> StepResult;
+    /// Reference states that episodes may start from (reference state initialization);
+    /// environments without it ignore them.
+    fn set_reference_states(&mut self, _states: std::sync::Arc<[crate::reference::ReferenceState]>) {}
 }

@@ -237,8 +237,17 @@ pub struct AmpConfig {
     pub replay_buffer_size: usize,
     /// Prior source.
     pub prior_kind: PriorKind,
-    /// Directory of the motion-prior clips (relative to the working directory).
+    /// Directory of the motion-prior clips (relative to the working directory, or else to
+    /// the workspace root).
     pub priors_dir: String,
+    /// Which states of the clips the discriminator sees and episodes start from: `tracked`
+    /// (the simulator performing each clip with its drives: states the robot can reach)
+    /// or `optimized` (the trajectory optimization's frames, as the paper's dataset).
+    pub prior_states: crate::priors::dataset::PriorStates,
+    /// Let the discriminator's Adam follow the policy's learning rate (the adaptive KL
+    /// schedule), as AMP_for_hardware does with one optimizer for both, instead of the
+    /// fixed `learning_rate`.
+    pub follow_policy_learning_rate: bool,
 }
 
 impl Default for AmpConfig {
@@ -254,6 +263,8 @@ impl Default for AmpConfig {
             replay_buffer_size: 100_000,
             prior_kind: PriorKind::Dataset,
             priors_dir: "assets/priors".into(),
+            prior_states: crate::priors::dataset::PriorStates::Tracked,
+            follow_policy_learning_rate: false,
         }
     }
 }
@@ -323,11 +334,27 @@ impl TrainConfig {
         Ok(cfg)
     }
 
-    /// Reads and validates a TOML file.
+    /// Reads and validates a TOML file. A preset may start from another one with
+    /// `base = "other.toml"` (relative to its own directory): the base is read first (it
+    /// may have a base of its own) and the preset's keys replace the base's, table by
+    /// table.
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| ConfigError::Io { path: path.display().to_string(), source })?;
-        Self::from_toml_str(&text, &path.display().to_string())
+        Self::load_with_overrides(path, &[])
+    }
+
+    /// [`TrainConfig::load`], then `overrides` (`section.key=value`, the value in TOML
+    /// syntax; a bare word is taken as a string) applied over the layered file.
+    pub fn load_with_overrides(path: &Path, overrides: &[String]) -> Result<Self, ConfigError> {
+        let mut table = load_layered(path, 0)?;
+        let origin = path.display().to_string();
+        for o in overrides {
+            apply_override(&mut table, o).map_err(|message| ConfigError::Parse { path: format!("--set {o}"), message })?;
+        }
+        let cfg: TrainConfig = toml::Value::Table(table)
+            .try_into()
+            .map_err(|e: toml::de::Error| ConfigError::Parse { path: origin, message: e.to_string() })?;
+        cfg.validate()?;
+        Ok(cfg)
     }
 
     /// The resolved configuration as TOML (every key written).
@@ -403,6 +430,79 @@ impl TrainConfig {
     }
 }
 
+/// A path from a config or the command line: as given when it exists (relative to the
+/// working directory) or is absolute, else relative to the workspace root, so the CLI works
+/// from any directory of the checkout.
+pub fn resolve_path(path: &str) -> std::path::PathBuf {
+    let given = Path::new(path);
+    if given.is_absolute() || given.exists() {
+        return given.to_path_buf();
+    }
+    let from_root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(given);
+    if from_root.exists() {
+        from_root
+    } else {
+        given.to_path_buf()
+    }
+}
+
+/// Deepest chain of `base` presets followed (a loop is refused at this depth).
+const MAX_BASE_DEPTH: usize = 8;
+
+/// The TOML table of `path` with its `base` chain merged under it.
+fn load_layered(path: &Path, depth: usize) -> Result<toml::Table, ConfigError> {
+    let origin = path.display().to_string();
+    if depth > MAX_BASE_DEPTH {
+        return Err(ConfigError::Parse { path: origin, message: format!("more than {MAX_BASE_DEPTH} nested `base` presets (a loop?)") });
+    }
+    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io { path: origin.clone(), source })?;
+    let mut table: toml::Table = text.parse().map_err(|e: toml::de::Error| ConfigError::Parse { path: origin.clone(), message: e.to_string() })?;
+    let Some(base) = table.remove("base") else {
+        return Ok(table);
+    };
+    let Some(base) = base.as_str() else {
+        return Err(ConfigError::Parse { path: origin, message: "`base` must be a file name (a string)".into() });
+    };
+    let base_path = path.parent().unwrap_or(Path::new(".")).join(base);
+    let mut merged = load_layered(&base_path, depth + 1)?;
+    merge_into(&mut merged, table);
+    Ok(merged)
+}
+
+/// Replaces `base`'s keys by `top`'s, descending into tables present in both.
+fn merge_into(base: &mut toml::Table, top: toml::Table) {
+    for (key, value) in top {
+        match (base.get_mut(&key), value) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(t)) => merge_into(b, t),
+            (_, value) => {
+                base.insert(key, value);
+            }
+        }
+    }
+}
+
+/// Sets `section.key=value` in `table`.
+fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<(), String> {
+    let (key, value) = assignment.split_once('=').ok_or_else(|| "expected `section.key=value`".to_string())?;
+    let value = value.trim();
+    let parsed: toml::Value = match format!("v = {value}").parse::<toml::Table>() {
+        Ok(mut t) => t.remove("v").expect("the key was written"),
+        Err(_) => toml::Value::String(value.to_string()),
+    };
+    let mut parts: Vec<&str> = key.trim().split('.').collect();
+    let last = parts.pop().filter(|k| !k.is_empty()).ok_or_else(|| "empty key".to_string())?;
+    let mut at = table;
+    for part in parts {
+        at = at
+            .entry(part.to_string())
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()))
+            .as_table_mut()
+            .ok_or_else(|| format!("`{part}` is not a table"))?;
+    }
+    at.insert(last.to_string(), parsed);
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -447,5 +547,36 @@ mod tests {
         let err = TrainConfig::from_toml_str("[env]\nnum_envs = 3\n[ppo]\nnum_mini_batches = 4\nnum_steps_per_env = 3\n", "x")
             .unwrap_err();
         assert!(err.to_string().contains("divisible"), "{err}");
+    }
+
+    fn temp_dir(name: &str) -> std::path::PathBuf {
+        let d = std::env::temp_dir().join(format!("hexapod-config-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    #[test]
+    fn presets_layer_on_a_base_and_the_command_line_overrides_both() {
+        let d = temp_dir("layers");
+        std::fs::write(d.join("base.toml"), "[ppo]\nlearning_rate = 1e-3\ngamma = 0.98\n[runner]\nexperiment_name = \"base\"\n").unwrap();
+        std::fs::write(d.join("mid.toml"), "base = \"base.toml\"\n[ppo]\ngamma = 0.97\n").unwrap();
+        std::fs::write(d.join("top.toml"), "base = \"mid.toml\"\n[runner]\nexperiment_name = \"top\"\n").unwrap();
+        let cfg = TrainConfig::load(&d.join("top.toml")).unwrap();
+        assert_eq!((cfg.ppo.learning_rate, cfg.ppo.gamma), (1e-3, 0.97));
+        assert_eq!(cfg.runner.experiment_name, "top");
+        let set = |s: &[&str]| s.iter().map(|x| x.to_string()).collect::<Vec<_>>();
+        let cfg = TrainConfig::load_with_overrides(&d.join("top.toml"), &set(&["ppo.learning_rate=3e-4", "runner.experiment_name=x", "sim.curriculum=false"])).unwrap();
+        assert_eq!((cfg.ppo.learning_rate, cfg.runner.experiment_name.as_str(), cfg.sim.curriculum), (3e-4, "x", false));
+        // Unknown keys and bad values name what is wrong.
+        let err = TrainConfig::load_with_overrides(&d.join("top.toml"), &set(&["ppo.learnig_rate=1"])).unwrap_err().to_string();
+        assert!(err.contains("learnig_rate"), "{err}");
+        let err = TrainConfig::load_with_overrides(&d.join("top.toml"), &set(&["ppo.gamma"])).unwrap_err().to_string();
+        assert!(err.contains("section.key=value"), "{err}");
+        // A loop of bases and a missing base are refused.
+        std::fs::write(d.join("loop.toml"), "base = \"loop.toml\"\n").unwrap();
+        assert!(TrainConfig::load(&d.join("loop.toml")).unwrap_err().to_string().contains("loop"));
+        std::fs::write(d.join("orphan.toml"), "base = \"nowhere.toml\"\n").unwrap();
+        assert!(TrainConfig::load(&d.join("orphan.toml")).unwrap_err().to_string().contains("nowhere.toml"));
+        std::fs::remove_dir_all(&d).ok();
     }
 }

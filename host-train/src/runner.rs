@@ -88,6 +88,12 @@ impl Runner {
         if ppo.disc.is_some() && priors.is_none() {
             return Err(TrainError::Priors("the style reward is on but no motion priors were given".into()));
         }
+        if let Some(p) = &priors {
+            let references = p.reference_states();
+            if !references.is_empty() {
+                env.set_reference_states(references.into());
+            }
+        }
         let n = env.num_envs();
         let obs = env.reset();
         std::fs::create_dir_all(run_dir)

@@ -446,6 +446,9 @@ impl Ppo {
         let grads = loss.backward()?;
         st.grad_norm = self.opt.step(&grads, Some(p.max_grad_norm as f64))? as f32;
         if let Some(dopt) = &mut self.disc_opt {
+            if self.cfg.amp.follow_policy_learning_rate {
+                dopt.lr = self.opt.lr;
+            }
             dopt.step(&grads, None)?;
         }
         if let (Some(disc), Some(a)) = (&mut self.disc, amp) {

@@ -4,12 +4,18 @@
 use hexapod_core::amp::{amp_state, AMP_STATE_DIM};
 use hexapod_core::robot::{Leg, NUM_JOINTS, Q0_RAD};
 use hexapod_core::timing::POLICY_DT_S;
+use crate::priors::dataset::MotionDataset;
+use host_sim::reference::ReferenceState;
 use rand::{Rng, RngCore};
 
 /// A source of prior transitions.
 pub trait MotionPriorSource {
     /// `n` transitions (`s_t` `[n, 61]`, `s_t+1` `[n, 61]`), one policy step apart.
     fn sample(&mut self, n: usize, rng: &mut dyn RngCore) -> (Vec<f32>, Vec<f32>);
+    /// States episodes may start from (reference state initialization); none by default.
+    fn reference_states(&self) -> Vec<ReferenceState> {
+        Vec::new()
+    }
 }
 
 /// An idealized tripod gait: the two tripods swing in antiphase at a fixed frequency while
@@ -44,7 +50,7 @@ impl SyntheticTripod {
             q[j + 1] -= 0.3 * lift;
             qd[j + 1] = if lift > 0.0 { -0.3 * omega * p.sin() } else { 0.0 };
         }
-        amp_state(&q, &qd, [self.speed_m_s, 0.0, 0.0], [0.0; 3], 0.31)
+        amp_state(&q, &qd, [self.speed_m_s, 0.0, 0.0], [0.0; 3], [0.0, 0.0, 1.0])
     }
 }
 
@@ -62,7 +68,8 @@ impl MotionPriorSource for SyntheticTripod {
     }
 }
 
-/// The prior source a config asks for (`None` when the style reward is off).
+/// The prior source a config asks for (`None` when the style reward is off). Dataset
+/// priors must cover the configured command range ([`MotionDataset::check_command_coverage`]).
 pub fn load_prior_source(
     cfg: &crate::config::TrainConfig,
 ) -> Result<Option<Box<dyn MotionPriorSource>>, crate::error::TrainError> {
@@ -74,35 +81,21 @@ pub fn load_prior_source(
     match cfg.amp.prior_kind {
         PriorKind::Synthetic => Ok(Some(Box::new(SyntheticTripod::default()))),
         PriorKind::Dataset => {
-            let dir = std::path::Path::new(&cfg.amp.priors_dir);
-            let dataset = crate::priors::dataset::MotionDataset::load_dir(dir).map_err(|e| {
+            let dir = crate::config::resolve_path(&cfg.amp.priors_dir);
+            let dataset = MotionDataset::load(&dir, cfg.amp.prior_states).map_err(|e| {
                 TrainError::Priors(format!("{e} (generate the clips with `hexapod priors`, or set amp.priors_dir)"))
             })?;
+            let sim = cfg.resolved_sim();
+            let c = &sim.commands;
+            dataset
+                .check_command_coverage([c.lin_vel_x_m_s, c.lin_vel_y_m_s, c.ang_vel_z_rad_s], c.zero_probability)
+                .map_err(|e| TrainError::Priors(e.to_string()))?;
             Ok(Some(Box::new(dataset)))
         }
     }
 }
 
-/// The trajectory-optimized tripod clips of `assets/priors` as a prior source.
-pub struct DatasetPriors {
-    /// The loaded, validated clips.
-    pub dataset: crate::priors::dataset::MotionDataset,
-}
-
-impl MotionPriorSource for DatasetPriors {
-    fn sample(&mut self, n: usize, rng: &mut dyn RngCore) -> (Vec<f32>, Vec<f32>) {
-        let pairs = self.dataset.sample_transitions(rng, n);
-        let mut s = Vec::with_capacity(n * AMP_STATE_DIM);
-        let mut sn = Vec::with_capacity(n * AMP_STATE_DIM);
-        for (a, b) in pairs {
-            s.extend_from_slice(&a);
-            sn.extend_from_slice(&b);
-        }
-        (s, sn)
-    }
-}
-
-impl MotionPriorSource for crate::priors::dataset::MotionDataset {
+impl MotionPriorSource for MotionDataset {
     fn sample(&mut self, n: usize, rng: &mut dyn RngCore) -> (Vec<f32>, Vec<f32>) {
         let mut s = Vec::with_capacity(n * AMP_STATE_DIM);
         let mut sn = Vec::with_capacity(n * AMP_STATE_DIM);
@@ -111,6 +104,10 @@ impl MotionPriorSource for crate::priors::dataset::MotionDataset {
             sn.extend_from_slice(&b);
         }
         (s, sn)
+    }
+
+    fn reference_states(&self) -> Vec<ReferenceState> {
+        MotionDataset::reference_states(self)
     }
 }
 

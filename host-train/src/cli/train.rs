@@ -14,9 +14,13 @@ pub struct TrainArgs {
     /// Preset (TOML), e.g. `configs/default.toml`.
     #[arg(long, short)]
     pub config: PathBuf,
-    /// Output directory (default `runs/<experiment_name>`).
+    /// Output directory (default `runs/<run name>`).
     #[arg(long)]
     pub run_dir: Option<PathBuf>,
+    /// Name of the run: its directory under `runs/` (default: the preset's
+    /// `runner.experiment_name`).
+    #[arg(long, conflicts_with = "run_dir")]
+    pub run_name: Option<String>,
     /// Continue from this checkpoint directory (its weights, optimizer and iteration).
     #[arg(long)]
     pub resume: Option<PathBuf>,
@@ -32,11 +36,22 @@ pub struct TrainArgs {
     /// No progress bar (for logs).
     #[arg(long)]
     pub no_progress: bool,
+    /// Override any config key: `--set ppo.learning_rate=3e-4 --set sim.curriculum=false`
+    /// (values in TOML syntax; repeatable, applied in order after the preset's `base` chain).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub overrides: Vec<String>,
+    /// Seed of the environment and the learner (`env.seed` and `runner.seed`).
+    #[arg(long)]
+    pub seed: Option<u64>,
 }
 
 /// Applies command-line overrides and validates.
 pub fn resolve_config(args: &TrainArgs) -> anyhow::Result<TrainConfig> {
-    let mut cfg = TrainConfig::load(&args.config)?;
+    let mut cfg = TrainConfig::load_with_overrides(&args.config, &args.overrides)?;
+    if let Some(seed) = args.seed {
+        cfg.env.seed = seed;
+        cfg.runner.seed = seed;
+    }
     if let Some(n) = args.max_iterations {
         cfg.runner.max_iterations = n;
     }
@@ -56,7 +71,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     if cfg.runner.num_threads > 0 {
         std::env::set_var("RAYON_NUM_THREADS", cfg.runner.num_threads.to_string());
     }
-    let run_dir = args.run_dir.clone().unwrap_or_else(|| PathBuf::from("runs").join(&cfg.runner.experiment_name));
+    let run_dir = args.run_dir.clone().unwrap_or_else(|| {
+        PathBuf::from("runs").join(args.run_name.as_deref().unwrap_or(&cfg.runner.experiment_name))
+    });
     let env = make_env(&cfg)?;
     let priors = load_prior_source(&cfg)?;
     let mut runner = Runner::new(&cfg, env, priors, &run_dir)?;

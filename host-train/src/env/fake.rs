@@ -79,7 +79,7 @@ impl PointMassEnv {
     }
 
     fn amp(r: &Robot) -> [f32; AMP_STATE_DIM] {
-        amp_state(&Self::q(r), &r.qdot, [r.vel[0], r.vel[1], 0.0], [0.0, 0.0, r.vel[2]], HEIGHT_M)
+        amp_state(&Self::q(r), &r.qdot, [r.vel[0], r.vel[1], 0.0], [0.0, 0.0, r.vel[2]], [0.0, 0.0, 1.0])
     }
 
     fn observe_proprio(r: &mut Robot, rng: &mut ChaCha8Rng) -> [f32; PROPRIO_DIM] {

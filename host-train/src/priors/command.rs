@@ -65,27 +65,48 @@ impl GaitCommand {
     }
 }
 
-/// The dataset's commands: forward and backward at two speeds, lateral, turning, and
-/// combinations (forward with turning, diagonals), plus slower variants.
+/// Forward speeds of the dataset's grid, m/s (the training box is [-0.4, 0.5]).
+pub const GRID_VX_M_S: [f64; 6] = [-0.4, -0.2, 0.0, 0.2, 0.4, 0.5];
+/// Lateral speeds of the grid, m/s (the box is [-0.2, 0.2]).
+pub const GRID_VY_M_S: [f64; 3] = [-0.2, 0.0, 0.2];
+/// Yaw rates of the grid, rad/s (the box is [-0.5, 0.5]).
+pub const GRID_WZ_RAD_S: [f64; 3] = [-0.5, 0.0, 0.5];
+
+/// A readable clip name for a command: `forward_0.2_left_0.2_turn_right_0.5`, `in_place`.
+pub fn command_name(vx_m_s: f64, vy_m_s: f64, wz_rad_s: f64) -> String {
+    let mut parts = Vec::new();
+    let mut part = |v: f64, pos: &str, neg: &str| {
+        if v.abs() > 1e-9 {
+            parts.push(format!("{}_{}", if v > 0.0 { pos } else { neg }, format!("{:.2}", v.abs()).trim_end_matches('0').trim_end_matches('.')));
+        }
+    };
+    part(vx_m_s, "forward", "backward");
+    part(vy_m_s, "left", "right");
+    part(wz_rad_s, "turn_left", "turn_right");
+    if parts.is_empty() {
+        "in_place".into()
+    } else {
+        parts.join("_")
+    }
+}
+
+/// The dataset's commands: the grid over the training command box (every combination of
+/// [`GRID_VX_M_S`], [`GRID_VY_M_S`] and [`GRID_WZ_RAD_S`], stepping in place included),
+/// plus forward at 0.1 and 0.3 m/s. Any command of the box is then within 0.1 m/s on each
+/// axis and 0.25 rad/s of a clip (`dataset::check_command_coverage`).
 pub fn default_commands() -> Vec<GaitCommand> {
-    vec![
-        GaitCommand::new("forward_0.1", 0.1, 0.0, 0.0),
-        GaitCommand::new("forward_0.2", 0.2, 0.0, 0.0),
-        GaitCommand::new("forward_0.3", 0.3, 0.0, 0.0),
-        GaitCommand::new("forward_0.4", 0.4, 0.0, 0.0),
-        GaitCommand::new("backward_0.2", -0.2, 0.0, 0.0),
-        GaitCommand::new("backward_0.4", -0.4, 0.0, 0.0),
-        GaitCommand::new("left_0.2", 0.0, 0.2, 0.0),
-        GaitCommand::new("right_0.2", 0.0, -0.2, 0.0),
-        GaitCommand::new("turn_left_0.5", 0.0, 0.0, 0.5),
-        GaitCommand::new("turn_right_0.5", 0.0, 0.0, -0.5),
-        GaitCommand::new("forward_0.3_turn_left_0.4", 0.3, 0.0, 0.4),
-        GaitCommand::new("forward_0.3_turn_right_0.4", 0.3, 0.0, -0.4),
-        GaitCommand::new("diagonal_front_left_0.2", 0.14, 0.14, 0.0),
-        GaitCommand::new("diagonal_front_right_0.2", 0.14, -0.14, 0.0),
-        GaitCommand::new("diagonal_back_left_0.2", -0.14, 0.14, 0.0),
-        GaitCommand::new("diagonal_back_right_0.2", -0.14, -0.14, 0.0),
-    ]
+    let mut commands = Vec::new();
+    for vx in GRID_VX_M_S {
+        for vy in GRID_VY_M_S {
+            for wz in GRID_WZ_RAD_S {
+                commands.push(GaitCommand::new(&command_name(vx, vy, wz), vx, vy, wz));
+            }
+        }
+    }
+    for vx in [0.1, 0.3] {
+        commands.push(GaitCommand::new(&command_name(vx, 0.0, 0.0), vx, 0.0, 0.0));
+    }
+    commands
 }
 
 #[cfg(test)]
@@ -108,6 +129,15 @@ mod tests {
         // Small tau: velocity equals the command.
         let d = cmd.displacement_m(1e-6);
         assert!((d[0] / 1e-6 - 0.3).abs() < 1e-6 && (d[1] / 1e-6 + 0.1).abs() < 1e-6);
+    }
+
+    #[test]
+    fn names_say_the_command() {
+        assert_eq!(command_name(0.2, 0.0, 0.0), "forward_0.2");
+        assert_eq!(command_name(-0.4, 0.2, -0.5), "backward_0.4_left_0.2_turn_right_0.5");
+        assert_eq!(command_name(0.0, 0.0, 0.0), "in_place");
+        let names: std::collections::BTreeSet<String> = default_commands().into_iter().map(|c| c.name).collect();
+        assert_eq!(names.len(), 56, "names are unique");
     }
 
     #[test]

@@ -126,8 +126,15 @@ impl Frame {
             &self.joint_vel_rad_s,
             self.lin_vel_base_m_s,
             self.ang_vel_base_rad_s,
-            self.base_height_m(),
+            self.up_base(),
         )
+    }
+
+    /// The world's up direction in the base frame.
+    pub fn up_base(&self) -> [f32; 3] {
+        let [x, y, z, w] = self.base_quat_xyzw;
+        // Third row of the rotation matrix (base -> world): R^T e_z.
+        [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)]
     }
 }
 

@@ -8,7 +8,8 @@
 //! clip's states, and compared frame by frame.
 
 use super::clip::MotionClip;
-use hexapod_core::amp::{amp_state, AMP_BASE_HEIGHT, AMP_JOINT_POS, AMP_STATE_DIM};
+use hexapod_core::amp::{amp_state, AMP_JOINT_POS, AMP_STATE_DIM};
+use host_sim::reference::ReferenceState;
 use hexapod_core::robot::NUM_JOINTS;
 use hexapod_core::timing::DECIMATION;
 use host_sim::frames::{rotate, rotate_inverse};
@@ -113,6 +114,9 @@ pub struct ReplayReport {
     pub joint_rms_rad: f32,
     /// True when upright and within the velocity tolerances.
     pub passed: bool,
+    /// The simulator's states at every policy step after the warm-up: the clip as the
+    /// simulated robot performs it (the reachable reference motion).
+    pub states: Vec<ReferenceState>,
 }
 
 impl ReplayReport {
@@ -150,8 +154,20 @@ pub fn sim_amp_state(s: &RobotState) -> [f32; AMP_STATE_DIM] {
         &s.qdot_rad_s,
         lin_vel,
         ang_vel,
-        s.base_pos_world_m[2],
+        rotate_inverse(s.base_quat_xyzw, [0.0, 0.0, 1.0]),
     )
+}
+
+/// The reference state of the simulator's state `s` (flat ground at z = 0).
+pub fn sim_reference_state(s: &RobotState) -> ReferenceState {
+    ReferenceState {
+        q_rad: s.q_rad,
+        qdot_rad_s: s.qdot_rad_s,
+        lin_vel_base_m_s: rotate_inverse(s.base_quat_xyzw, s.base_lin_vel_world_m_s),
+        ang_vel_base_rad_s: rotate_inverse(s.base_quat_xyzw, s.base_ang_vel_world_rad_s),
+        up_base: rotate_inverse(s.base_quat_xyzw, [0.0, 0.0, 1.0]),
+        base_height_m: s.base_pos_world_m[2],
+    }
 }
 
 /// `rel * magnitude`, or `zero_tol` when nothing is commanded.
@@ -185,6 +201,7 @@ pub fn replay_clip<P: ReplayPlant>(
     let (mut sum_v, mut count) = ([0.0f32; 3], 0usize);
     let (mut max_tilt, mut min_height, mut sum_height) = (0.0f32, f32::MAX, 0.0f32);
     let (mut joint_sq, mut joint_count) = (0.0f32, 0usize);
+    let mut states = Vec::with_capacity((cfg.cycles - cfg.warmup_cycles.min(cfg.cycles)) * n);
     for k in 0..cfg.cycles * n {
         let (a, b) = (
             &clip.frames[k % n].joint_pos_rad,
@@ -206,8 +223,9 @@ pub fn replay_clip<P: ReplayPlant>(
             sum_v[0] += v[0];
             sum_v[1] += v[1];
             sum_v[2] += w[2];
-            sum_height += amp[AMP_BASE_HEIGHT];
+            sum_height += s.base_pos_world_m[2];
             count += 1;
+            states.push(sim_reference_state(&s));
             let reference = &clip_states[(k + 1) % n];
             for j in AMP_JOINT_POS {
                 joint_sq += (amp[j] - reference[j]).powi(2);
@@ -247,5 +265,6 @@ pub fn replay_clip<P: ReplayPlant>(
             && yaw_error <= yaw_tol
             && max_tilt <= cfg.max_tilt_rad
             && min_height >= cfg.min_height_m,
+        states,
     }
 }

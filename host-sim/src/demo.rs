@@ -6,7 +6,7 @@ use crate::terrain::{Terrain, TerrainConfig};
 use crate::trajectory::{Sample, Trajectory};
 use crate::urdf_model::{default_urdf_path, UrdfModel};
 use anyhow::Context;
-use hexapod_core::robot::{NUM_LEGS, Q0_RAD};
+use hexapod_core::robot::Q0_RAD;
 use hexapod_core::timing::{DECIMATION, PHYSICS_DT_S, POLICY_DT_S};
 use std::path::Path;
 
@@ -29,7 +29,7 @@ pub fn run(out: &Path, stand_s: f32, walk_s: f32, speed_m_s: f32) -> anyhow::Res
         }
         let state = robot.state();
         let contacts = robot.contacts();
-        let mask = (0..NUM_LEGS).filter(|&l| contacts.foot_force_world_n[l][2] > 1.0).fold(0u8, |m, l| m | (1 << l));
+        let mask = crate::rewards::stance_mask(&contacts.foot_force_world_n);
         traj.push(Sample {
             time_s: (k + 1) as f32 * POLICY_DT_S,
             state,

@@ -12,6 +12,7 @@ use crate::terrain::Terrain;
 use crate::urdf_model::{UrdfError, UrdfModel};
 use crate::vec_env::{Observations, StepResult, VecEnv};
 use hexapod_core::amp::{amp_state, AMP_STATE_DIM};
+use hexapod_core::control::action_to_targets;
 use hexapod_core::obs::{
     actor_obs, height_scan_point_m, proprio_noise_scale, proprio_obs, ProprioHistory,
     ACTION_CLIP, ACTOR_OBS_DIM, CONTACT_FORCE_SCALE, HEIGHT_SCALE, HEIGHT_SCAN_DIM,
@@ -38,8 +39,6 @@ const NOMINAL_STIFFNESS_NM_PER_RAD: f32 = CSP_KP1_PER_S * CSP_KP2_NMS_PER_RAD;
 const SPAWN_HEIGHT_M: f32 = 0.33;
 /// Least gap between a foot and the ground under it at spawn, m.
 const SPAWN_FOOT_GAP_M: f32 = 0.01;
-/// A foot counts as in contact above this normal force, N.
-pub const CONTACT_THRESHOLD_N: f32 = 1.0;
 
 /// Why an environment could not be built.
 #[derive(Debug, thiserror::Error)]
@@ -79,6 +78,7 @@ struct Slot {
     command: [f32; 3],
     action: [f32; NUM_JOINTS],
     prev_action: [f32; NUM_JOINTS],
+    prev_targets: [f32; NUM_JOINTS],
     last_qdot: [f32; NUM_JOINTS],
     history: ProprioHistory,
     step: usize,
@@ -161,6 +161,7 @@ impl HexapodEnv {
                     command: [0.0; 3],
                     action: [0.0; NUM_JOINTS],
                     prev_action: [0.0; NUM_JOINTS],
+                    prev_targets: Q0_RAD,
                     last_qdot: [0.0; NUM_JOINTS],
                     history: ProprioHistory::filled_with(&[0.0; PROPRIO_DIM]),
                     step: 0,
@@ -199,10 +200,10 @@ impl HexapodEnv {
         self.slots[i].contacts
     }
 
-    /// Feet on the ground (bit i = leg i) of robot `i`.
+    /// Feet on the ground (bit i = leg i) of robot `i`: the rewards' stance rule
+    /// (`rewards::stance_mask`, contact force above `STANCE_FORCE_N`).
     pub fn foot_contact_mask(&self, i: usize) -> u8 {
-        let c = &self.slots[i].contacts;
-        (0..NUM_LEGS).filter(|&l| c.foot_force_world_n[l][2] > CONTACT_THRESHOLD_N).fold(0, |m, l| m | (1 << l))
+        rewards::stance_mask(&self.slots[i].contacts.foot_force_world_n)
     }
 
     /// Command of robot `i`.
@@ -254,6 +255,12 @@ impl HexapodEnv {
     /// Where robot `i` started its current episode (x, y), m.
     pub fn spawn_position_m(&self, i: usize) -> [f32; 2] {
         self.slots[i].origin_m
+    }
+
+    /// Joint targets of robot `i` in the last policy step (after the action path's clamps),
+    /// rad.
+    pub fn targets_rad(&self, i: usize) -> [f32; NUM_JOINTS] {
+        self.slots[i].prev_targets
     }
 
     /// Joint torques of robot `i` in the last physics step, N m.
@@ -496,6 +503,7 @@ impl Slot {
         self.command_progress = CommandProgress::default();
         self.sample_command(config);
         self.prev_action = self.action;
+        self.prev_targets = q;
         self.last_qdot = reference.map_or([0.0; NUM_JOINTS], |r| r.qdot_rad_s);
         self.step = 0;
         self.last_push_m_s = [0.0; 3];
@@ -587,13 +595,12 @@ impl Slot {
             self.reset(config);
             return SlotStep { reward: 0.0, done: true, time_out: false, invalid, amp_next, episode };
         }
-        for j in 0..NUM_JOINTS {
-            self.action[j] = action[j].clamp(-ACTION_CLIP, ACTION_CLIP);
-        }
-        let mut q_target = [0.0; NUM_JOINTS];
-        for j in 0..NUM_JOINTS {
-            q_target[j] = Q0_RAD[j] + ACTION_SCALE_RAD * self.action[j];
-        }
+        // The firmware's action path (`hexapod_core::control::action_to_targets`): clip,
+        // offset from the nominal pose, clamp to the joint limits and the rate limit.
+        let action: &[f32; NUM_JOINTS] = action.try_into().expect("one action per joint");
+        let q_target;
+        (self.action, q_target) = action_to_targets(action, &self.prev_targets);
+        self.prev_targets = q_target;
         // Foot forces are averaged over the policy step: single 5 ms samples carry impact
         // spikes that would dominate the contact-force penalty and the privileged state.
         let mut force_sum = [[0.0f32; 3]; NUM_LEGS];

@@ -116,6 +116,71 @@ fn nan_action_resets_only_that_robot() {
 }
 
 #[test]
+fn targets_take_the_firmware_action_path() {
+    use hexapod_core::control::{action_to_targets, max_target_step_rad};
+    use hexapod_core::robot::{Q0_RAD, Q_MAX_RAD, Q_MIN_RAD};
+    let mut env = HexapodEnv::new(quiet_config(1)).unwrap();
+    env.reset();
+    let mut previous = env.targets_rad(0);
+    assert_eq!(previous, Q0_RAD, "targets start at the spawn pose");
+    // A saturated action: the targets move by at most one step of the velocity limit and
+    // never beyond the joint limits, exactly as the firmware's control step computes them.
+    let action = [100.0; NUM_JOINTS];
+    for _ in 0..5 {
+        if env.step(&action).dones[0] {
+            break;
+        }
+        let targets = env.targets_rad(0);
+        assert_eq!(targets, action_to_targets(&action, &previous).1);
+        for j in 0..NUM_JOINTS {
+            assert!((targets[j] - previous[j]).abs() <= max_target_step_rad(j) + 1e-6);
+            assert!((Q_MIN_RAD[j]..=Q_MAX_RAD[j]).contains(&targets[j]));
+        }
+        previous = targets;
+    }
+    // The rate limit held: after one step no target is at the action's far end.
+    assert!(previous.iter().zip(&Q_MAX_RAD).any(|(t, m)| t < m));
+}
+
+#[test]
+fn episodes_start_from_reference_states_when_given() {
+    use host_sim::reference::ReferenceState;
+    use host_sim::frames::rotate_inverse;
+    let mut c = quiet_config(4);
+    c.reference_init_probability = 1.0;
+    let mut env = HexapodEnv::new(c).unwrap();
+    let mut q = hexapod_core::robot::Q0_RAD;
+    q[1] += 0.2;
+    let tilt = 0.1f32;
+    let reference = ReferenceState {
+        q_rad: q,
+        qdot_rad_s: [0.5; NUM_JOINTS],
+        lin_vel_base_m_s: [0.3, 0.0, 0.0],
+        ang_vel_base_rad_s: [0.0, 0.0, 0.4],
+        up_base: [tilt.sin(), 0.0, tilt.cos()],
+        base_height_m: 0.30,
+    };
+    env.set_reference_states(vec![reference].into());
+    env.reset();
+    for i in 0..4 {
+        let s = env.robot_state(i);
+        assert!(s.q_rad.iter().zip(&q).all(|(a, b)| (a - b).abs() < 1e-5), "{:?}", s.q_rad);
+        assert!(s.qdot_rad_s.iter().all(|&v| (v - 0.5).abs() < 1e-5), "{:?}", s.qdot_rad_s);
+        let v = rotate_inverse(s.base_quat_xyzw, s.base_lin_vel_world_m_s);
+        let w = rotate_inverse(s.base_quat_xyzw, s.base_ang_vel_world_rad_s);
+        assert!((v[0] - 0.3).abs() < 1e-4 && v[1].abs() < 1e-4, "{v:?}");
+        assert!((w[2] - 0.4).abs() < 1e-4, "{w:?}");
+        let up = rotate_inverse(s.base_quat_xyzw, [0.0, 0.0, 1.0]);
+        assert!((up[0] - tilt.sin()).abs() < 1e-5 && (up[2] - tilt.cos()).abs() < 1e-5, "{up:?}");
+        assert!(s.base_pos_world_m[2] >= 0.30 - 1e-4, "spawned at {} m", s.base_pos_world_m[2]);
+    }
+    // Without reference states (or with probability 0) robots stand at the nominal pose.
+    let mut env = HexapodEnv::new(quiet_config(1)).unwrap();
+    env.reset();
+    assert_eq!(env.robot_state(0).qdot_rad_s, [0.0; NUM_JOINTS]);
+}
+
+#[test]
 fn time_out_is_flagged_for_bootstrapping() {
     let mut c = quiet_config(1);
     c.episode_length_s = 0.2;

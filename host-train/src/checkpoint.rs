@@ -106,6 +106,39 @@ fn malformed(path: &Path, e: impl ToString) -> CheckpointError {
     CheckpointError::Malformed { path: path.display().to_string(), message: e.to_string() }
 }
 
+/// The checkpoint a path names: the directory itself when it holds `config.toml` and
+/// `policy.safetensors`, or, for
+/// a run directory (`runs/<name>`, with `checkpoints/model_NNNNNN`), its latest checkpoint.
+pub fn resolve_dir(path: &Path) -> Result<std::path::PathBuf, CheckpointError> {
+    let is_checkpoint = |p: &Path| p.join("config.toml").is_file() && p.join("policy.safetensors").is_file();
+    if is_checkpoint(path) {
+        return Ok(path.to_path_buf());
+    }
+    let checkpoints = path.join("checkpoints");
+    let latest = std::fs::read_dir(&checkpoints).ok().and_then(|entries| {
+        entries
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| is_checkpoint(p))
+            .filter(|p| p.file_name().is_some_and(|n| n.to_string_lossy().starts_with("model_")))
+            .max()
+    });
+    latest.ok_or_else(|| CheckpointError::Malformed {
+        path: path.display().to_string(),
+        message: "neither a checkpoint (config.toml, policy.safetensors) nor a run directory with checkpoints/model_NNNNNN".into(),
+    })
+}
+
+/// A short name for outputs derived from a checkpoint path: its last two components
+/// (`flat-tripod`, `my-run-model_000400`).
+pub fn display_name(dir: &Path) -> String {
+    let parts: Vec<String> = dir.components().rev().take(3).map(|c| c.as_os_str().to_string_lossy().into_owned()).collect();
+    match parts.as_slice() {
+        [model, checkpoints, run, ..] if checkpoints == "checkpoints" => format!("{run}-{model}"),
+        [last, ..] => last.clone(),
+        [] => "checkpoint".into(),
+    }
+}
+
 /// Reads the resolved config saved in a checkpoint directory.
 pub fn load_config(dir: &Path) -> Result<TrainConfig, CheckpointError> {
     let path = dir.join(CONFIG_FILE);
@@ -215,6 +248,26 @@ mod tests {
         let d = std::env::temp_dir().join(format!("hexapod-ckpt-{name}-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&d);
         d
+    }
+
+    #[test]
+    fn a_run_directory_names_its_latest_checkpoint() {
+        let cfg = tiny();
+        let ppo = Ppo::new(&cfg).unwrap();
+        let run = tmpdir("run");
+        for it in [50, 100, 7] {
+            save(&run.join("checkpoints").join(format!("model_{it:06}")), &ppo, it).unwrap();
+        }
+        // The run directory has its own config.toml but no weights: not a checkpoint.
+        std::fs::write(run.join("config.toml"), cfg.to_toml_string()).unwrap();
+        let latest = run.join("checkpoints/model_000100");
+        assert_eq!(resolve_dir(&run).unwrap(), latest);
+        assert_eq!(resolve_dir(&latest).unwrap(), latest);
+        assert_eq!(display_name(&latest), format!("{}-model_000100", run.file_name().unwrap().to_string_lossy()));
+        assert_eq!(display_name(Path::new("assets/policies/flat-tripod")), "flat-tripod");
+        let err = resolve_dir(&run.join("checkpoints")).unwrap_err().to_string();
+        assert!(err.contains("nor a run directory"), "{err}");
+        std::fs::remove_dir_all(&run).unwrap();
     }
 
     #[test]

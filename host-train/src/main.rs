@@ -28,16 +28,40 @@ enum Command {
     Plot(cli::plot::PlotArgs),
 }
 
-fn main() -> anyhow::Result<()> {
+fn main() -> std::process::ExitCode {
     host_train::alloc::keep_freed_memory();
     host_train::threads::single_threaded_elementwise();
     let cli = Cli::parse();
-    match cli.command {
+    let result = match cli.command {
         Command::Train(args) => cli::train::run(args),
         Command::Pretrain(args) => cli::pretrain::run(args),
         Command::Priors(args) => cli::priors::run(args),
         Command::Play(args) => cli::play::run(args),
         Command::Eval(args) => cli::eval::run(args),
         Command::Plot(args) => cli::plot::run(args),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {}", error_chain(&e));
+            std::process::ExitCode::FAILURE
+        }
     }
+}
+
+/// The error and its causes on one line, leaving out a cause whose text the message before
+/// it already contains (many errors print their source themselves). No backtrace: these are
+/// the user's errors (a path, a config value), not the program's.
+fn error_chain(e: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if !line.contains(&text) {
+            if !line.is_empty() {
+                line.push_str(": ");
+            }
+            line.push_str(&text);
+        }
+    }
+    line
 }

@@ -64,6 +64,7 @@ pub struct Runner {
     ep_len: Vec<usize>,
     ep_ret: Vec<f64>,
     last_checkpoint: Option<PathBuf>,
+    stop_requested: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
 }
 
 /// Errors with the run's context (last good checkpoint).
@@ -110,6 +111,7 @@ impl Runner {
             ep_len: vec![0; n],
             ep_ret: vec![0.0; n],
             last_checkpoint: None,
+            stop_requested: None,
         })
     }
 
@@ -275,8 +277,20 @@ impl Runner {
         Ok(())
     }
 
+    /// A flag that, once set (by Ctrl-C), ends [`Runner::learn`] after the current
+    /// iteration with a checkpoint.
+    pub fn set_stop_flag(&mut self, flag: std::sync::Arc<std::sync::atomic::AtomicBool>) {
+        self.stop_requested = Some(flag);
+    }
+
+    /// True when the stop flag was set.
+    pub fn stopped_early(&self) -> bool {
+        self.stop_requested.as_ref().is_some_and(|f| f.load(std::sync::atomic::Ordering::SeqCst))
+    }
+
     /// Trains until `cfg.runner.max_iterations`, checkpointing every `save_interval`
-    /// iterations and at the end. A non-finite loss stops the run; the checkpoints written
+    /// iterations and at the end (or
+    /// after the iteration in which the stop flag was set). A non-finite loss stops the run; the checkpoints written
     /// before it stay as they were.
     #[allow(clippy::result_large_err)]
     pub fn learn(&mut self, show_progress: bool) -> Result<PathBuf, RunError> {
@@ -300,11 +314,15 @@ impl Runner {
             };
             bar.set_position(self.iteration as u64);
             bar.set_message(progress_message(&row));
-            if self.iteration.is_multiple_of(save_every) || self.iteration == max {
+            if self.iteration.is_multiple_of(save_every) || self.iteration == max || self.stopped_early() {
                 self.save().map_err(|e| wrap(e, &self.last_checkpoint))?;
                 self.write_metrics(true).map_err(|e| wrap(e, &self.last_checkpoint))?;
             } else {
                 self.write_metrics(false).map_err(|e| wrap(e, &self.last_checkpoint))?;
+            }
+            if self.stopped_early() {
+                bar.abandon();
+                break;
             }
         }
         bar.finish();
@@ -316,16 +334,23 @@ impl Runner {
     }
 }
 
+/// The progress bar's line: mean reward per step, mean episode length (policy steps),
+/// planar velocity tracking error, the estimator's error, the discriminator's mean output
+/// on the rollout (+1 prior-like, -1 not) and throughput; "-" until a value exists (the
+/// episode figures need a finished episode).
 fn progress_message(row: &BTreeMap<String, f64>) -> String {
-    let g = |k: &str| row.get(k).copied().unwrap_or(f64::NAN);
+    let g = |k: &str, digits: usize| match row.get(k).copied() {
+        Some(v) if v.is_finite() => format!("{v:.digits$}"),
+        _ => "-".into(),
+    };
     format!(
-        "rew {:.3} len {:.0} track {:.3} m/s est {:.3} D(pi) {:.2} {:.0} steps/s",
-        g("reward/total"),
-        g("episode/length"),
-        g("tracking/lin_vel_error_m_s"),
-        g("estimator/error_m_s"),
-        g("amp/d_policy_rollout"),
-        g("perf/env_steps_per_s")
+        "reward/step {} | episode {} steps | vel err {} m/s | estimator err {} m/s | D(policy) {} | {} env steps/s",
+        g("reward/total", 3),
+        g("episode/length", 0),
+        g("tracking/lin_vel_error_m_s", 3),
+        g("estimator/error_m_s", 3),
+        g("amp/d_policy_rollout", 2),
+        g("perf/env_steps_per_s", 0)
     )
 }
 

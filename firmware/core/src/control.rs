@@ -119,6 +119,23 @@ pub fn clamp_targets(
     out
 }
 
+/// The action path the firmware and the simulator share: the policy's action clipped to
+/// `ACTION_CLIP`, offset from the nominal pose by `ACTION_SCALE_RAD`, then clamped to the
+/// joint limits and to one policy step's travel at the joint's velocity limit from
+/// `previous_targets`. Returns the clipped action (what the next observation feeds back)
+/// and the targets.
+pub fn action_to_targets(
+    action: &[f32; NUM_JOINTS],
+    previous_targets: &[f32; NUM_JOINTS],
+) -> ([f32; NUM_JOINTS], [f32; NUM_JOINTS]) {
+    let clipped = action.map(|a| a.clamp(-ACTION_CLIP, ACTION_CLIP));
+    let mut targets = [0.0; NUM_JOINTS];
+    for j in 0..NUM_JOINTS {
+        targets[j] = Q0_RAD[j] + ACTION_SCALE_RAD * clipped[j];
+    }
+    (clipped, clamp_targets(&targets, previous_targets))
+}
+
 /// The control step's state: history, previous action, previous targets.
 #[derive(Clone, Debug)]
 pub struct ControlStep {
@@ -190,13 +207,8 @@ impl ControlStep {
         let action = policy
             .act(command, &self.prev_action, history)
             .filter(|a| a.iter().all(|v| v.is_finite()))
-            .ok_or(ControlError::NonFiniteAction)?
-            .map(|a| a.clamp(-ACTION_CLIP, ACTION_CLIP));
-        let mut targets = [0.0; NUM_JOINTS];
-        for j in 0..NUM_JOINTS {
-            targets[j] = Q0_RAD[j] + ACTION_SCALE_RAD * action[j];
-        }
-        let targets = clamp_targets(&targets, &self.prev_targets);
+            .ok_or(ControlError::NonFiniteAction)?;
+        let (action, targets) = action_to_targets(&action, &self.prev_targets);
         self.prev_action = action;
         self.prev_targets = targets;
         Ok(targets)

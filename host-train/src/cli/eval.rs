@@ -37,7 +37,7 @@ pub struct EvalArgs {
     /// Policy steps per command (50 per second).
     #[arg(long, default_value_t = 500)]
     pub steps: usize,
-    /// Report file (default `<checkpoint>/eval.json`); with `--suite`, the report's
+    /// Report file (default `runs/eval/<checkpoint name>.json`); with `--suite`, the report's
     /// directory (required).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -228,7 +228,11 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     if let Some(suite) = &args.suite {
         return crate::cli::suite::run(&crate::cli::suite::SuiteOptions {
             suite: suite.clone(),
-            checkpoints: args.checkpoint.clone(),
+            checkpoints: args
+                .checkpoint
+                .iter()
+                .map(|c| crate::checkpoint::resolve_dir(c))
+                .collect::<Result<Vec<_>, _>>()?,
             out: args.out.clone().expect("clap requires --out with --suite"),
             protocols: args.protocol.clone(),
             quick: args.quick,
@@ -239,7 +243,13 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let [checkpoint] = args.checkpoint.as_slice() else {
         anyhow::bail!("give one --checkpoint (several are compared only with --suite)");
     };
-    let checkpoint = checkpoint.clone();
+    let checkpoint = crate::checkpoint::resolve_dir(checkpoint)?;
+    anyhow::ensure!(
+        args.steps > SETTLE_STEPS,
+        "--steps {} leaves nothing to measure: the first {SETTLE_STEPS} steps ({:.1} s) are the settle time",
+        args.steps,
+        SETTLE_STEPS as f32 * hexapod_core::timing::POLICY_DT_S
+    );
     let (mut cfg, mut ppo) = load_for_inference(&checkpoint)?;
     cfg.env.num_envs = args.num_envs;
     if let Some(kind) = &args.env {
@@ -354,7 +364,10 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         "mean: lin err {:.3} m/s, fall rate {:.2}, tripod score {:.2}, estimator error {:.3} m/s",
         report.mean_lin_vel_error_m_s, report.mean_fall_rate, report.mean_tripod_score, report.estimator_error_m_s
     );
-    let out = args.out.clone().unwrap_or_else(|| checkpoint.join("eval.json"));
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("runs/eval").join(format!("{}.json", crate::checkpoint::display_name(&checkpoint))));
     std::fs::write(&out, serde_json::to_string_pretty(&report)?).with_context(|| format!("writing {}", out.display()))?;
     eprintln!("report: {}", out.display());
     Ok(())

@@ -26,16 +26,17 @@ use std::path::PathBuf;
 /// Arguments of `hexapod play`.
 #[derive(Args, Debug)]
 pub struct PlayArgs {
-    /// Checkpoint directory (policy.safetensors + config.toml).
+    /// Checkpoint directory (policy.safetensors + config.toml), or a run directory (its
+    /// latest checkpoint).
     #[arg(long)]
     pub checkpoint: PathBuf,
     /// Policy steps to run (50 per second).
     #[arg(long, default_value_t = 500)]
     pub steps: usize,
-    /// Fixed command `vx,vy,wz` (m/s, m/s, rad/s) instead of the environment's.
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
-    pub command: Option<Vec<f32>>,
-    /// Output directory (default `<checkpoint>/play`).
+    /// The command `vx,vy,wz` (m/s, m/s, rad/s), held for the whole run.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, default_value = "0.3,0,0")]
+    pub command: Vec<f32>,
+    /// Output directory (default `runs/play/<checkpoint name>`).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Environment override (`sim` or `fake`).
@@ -110,12 +111,16 @@ pub fn set_command(actor: &mut [f32], command: [f32; 3]) {
 
 /// Runs `hexapod play`.
 pub fn run(args: PlayArgs) -> anyhow::Result<()> {
-    let (mut cfg, mut ppo) = load_for_inference(&args.checkpoint)?;
+    let checkpoint = crate::checkpoint::resolve_dir(&args.checkpoint)?;
+    let (mut cfg, mut ppo) = load_for_inference(&checkpoint)?;
     cfg.env.num_envs = 1;
     if let Some(kind) = &args.env {
         cfg.env.kind = if kind == "fake" { EnvKind::Fake } else { EnvKind::Sim };
     }
-    let out = args.out.clone().unwrap_or_else(|| args.checkpoint.join("play"));
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("runs/play").join(crate::checkpoint::display_name(&checkpoint)));
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let mut play_env = match cfg.env.kind {
         EnvKind::Sim => {
@@ -138,11 +143,13 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
         }
     };
     let mut obs = play_env.env().reset();
-    let command = match args.command.as_deref() {
-        None => None,
-        Some([vx, vy, wz]) => Some([*vx, *vy, *wz]),
-        Some(other) => anyhow::bail!("--command takes vx,vy,wz (3 values), got {}", other.len()),
+    let command = match args.command.as_slice() {
+        [vx, vy, wz] => Some([*vx, *vy, *wz]),
+        other => anyhow::bail!("--command takes vx,vy,wz (3 values), got {}", other.len()),
     };
+    if let Some([vx, vy, wz]) = command {
+        eprintln!("play {}: command vx {vx} m/s, vy {vy} m/s, wz {wz} rad/s for {:.1} s -> {}", checkpoint.display(), args.steps as f32 * POLICY_DT_S, out.display());
+    }
     let mut csv = String::from("t_s,cmd_vx,cmd_vy,cmd_wz,vx_m_s,vy_m_s,wz_rad_s,est_vx_m_s,est_vy_m_s,base_height_m,done");
     for name in JOINT_NAMES {
         write!(csv, ",q_{name}").ok();

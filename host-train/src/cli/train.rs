@@ -78,6 +78,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     let priors = load_prior_source(&cfg)?;
     let mut runner = Runner::new(&cfg, env, priors, &run_dir)?;
     if let Some(ckpt) = &args.resume {
+        let ckpt = &crate::checkpoint::resolve_dir(ckpt)?;
         let saved = crate::checkpoint::load_config(ckpt)?;
         if saved.policy != cfg.policy || saved.amp.discriminator_hidden != cfg.amp.discriminator_hidden {
             anyhow::bail!("{}: the checkpoint's network shapes differ from {}", ckpt.display(), args.config.display());
@@ -95,7 +96,29 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         cfg.runner.max_iterations,
         run_dir.display()
     );
+    // Ctrl-C: finish the iteration, save a checkpoint and say where; a second Ctrl-C quits
+    // at once.
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let flag = stop.clone();
+    ctrlc::set_handler(move || {
+        if flag.swap(true, std::sync::atomic::Ordering::SeqCst) {
+            std::process::exit(130);
+        }
+        eprintln!("\ninterrupt: saving a checkpoint after this iteration (Ctrl-C again to quit without it)");
+    })
+    .context("installing the Ctrl-C handler")?;
+    runner.set_stop_flag(stop);
     let last = runner.learn(!args.no_progress)?;
+    if runner.stopped_early() {
+        eprintln!(
+            "interrupted at iteration {}: checkpoint {} (resume with --resume {}), metrics {}",
+            runner.iteration,
+            last.display(),
+            last.display(),
+            run_dir.join("metrics.csv").display()
+        );
+        return Ok(());
+    }
     eprintln!("done: checkpoint {}, metrics {}", last.display(), run_dir.join("metrics.csv").display());
     Ok(())
 }

@@ -4,17 +4,18 @@
 
 use crate::checkpoint::load_for_inference;
 use crate::cli::replay::{render_replay, ReplayFrame};
+use crate::cli::eval::{contact_mask, SETTLE_STEPS};
 use crate::config::EnvKind;
 use crate::env::make_env;
 use crate::metrics::line_plot;
 use anyhow::Context;
 use clap::Args;
-use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_BASE_HEIGHT, AMP_JOINT_POS, AMP_STATE_DIM};
+use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_JOINT_POS, AMP_STATE_DIM};
 use hexapod_core::obs::{
-    ACTOR_COMMAND, ACTOR_OBS_DIM, COMMAND_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_LIN_VEL,
+    ACTOR_COMMAND, ACTOR_OBS_DIM, COMMAND_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_BASE_HEIGHT, PRIV_LIN_VEL,
 };
 use hexapod_core::amp::AMP_FOOT_POS;
-use hexapod_core::robot::{FOOT_RADIUS_M, JOINT_NAMES, LEG_NAMES, NUM_LEGS};
+use hexapod_core::robot::{FOOT_RADIUS_M, JOINT_NAMES, LEG_NAMES, NUM_LEGS, TRIPOD_A_MASK, TRIPOD_B_MASK};
 use hexapod_core::timing::POLICY_DT_S;
 use host_sim::env::HexapodEnv;
 use host_sim::frames::{quat_from_yaw, rotate};
@@ -166,6 +167,7 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
     let (mut x, mut y, mut yaw) = (0.0f32, 0.0f32, 0.0f32);
     let (mut vel, mut cmd_series, mut q_series) = (vec![Vec::new(); 3], vec![Vec::new(); 3], vec![Vec::new(); 6]);
     let mut clearance_series = vec![Vec::new(); NUM_LEGS];
+    let mut summary = Summary::default();
     for step in 0..args.steps {
         if let Some(c) = command {
             set_command(&mut obs.actor, c);
@@ -192,14 +194,23 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
                 x += (c * v[0] - s * v[1]) * POLICY_DT_S;
                 y += (s * v[0] + c * v[1]) * POLICY_DT_S;
                 yaw += v[2] * POLICY_DT_S;
-                ([x, y, amp[AMP_BASE_HEIGHT]], quat_from_yaw(yaw))
+                ([x, y, p[PRIV_BASE_HEIGHT]], quat_from_yaw(yaw))
             }
         };
         let res = play_env.env().step(&act.actions);
+        if step >= SETTLE_STEPS {
+            for k in 0..3 {
+                summary.sum_v[k] += v[k] as f64;
+            }
+            let mask = contact_mask(p);
+            summary.tripod += usize::from(mask == TRIPOD_A_MASK || mask == TRIPOD_B_MASK);
+            summary.samples += 1;
+        }
+        summary.falls += usize::from(res.dones[0] && !res.time_outs[0]);
         write!(
             csv,
             "{t},{},{},{},{},{},{},{},{},{},{}",
-            cmd[0], cmd[1], cmd[2], v[0], v[1], v[2], est[0], est[1], amp[AMP_BASE_HEIGHT], res.dones[0] as u8
+            cmd[0], cmd[1], cmd[2], v[0], v[1], v[2], est[0], est[1], p[PRIV_BASE_HEIGHT], res.dones[0] as u8
         )
         .ok();
         for q in &amp[AMP_JOINT_POS] {
@@ -254,5 +265,30 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
         render_replay(&out.join("replay.gif"), &frames, &ground).map_err(anyhow::Error::msg)?;
     }
     eprintln!("wrote {} (trajectory.csv, plots{})", out.display(), if args.no_replay { "" } else { ", replay.gif" });
+    if let (Some(c), true) = (command, summary.samples > 0) {
+        let n = summary.samples as f64;
+        let mean = summary.sum_v.map(|x| x / n);
+        println!(
+            "after the first {:.0} s: mean (vx, vy, wz) ({:+.2} m/s, {:+.2} m/s, {:+.2} rad/s) for the command ({:+.2}, {:+.2}, {:+.2}); tripod score {:.2} (share of steps with exactly one tripod down); falls {}",
+            SETTLE_STEPS as f32 * POLICY_DT_S,
+            mean[0],
+            mean[1],
+            mean[2],
+            c[0],
+            c[1],
+            c[2],
+            summary.tripod as f64 / n,
+            summary.falls
+        );
+    }
     Ok(())
+}
+
+/// What play measures after the settle time.
+#[derive(Default)]
+struct Summary {
+    sum_v: [f64; 3],
+    tripod: usize,
+    samples: usize,
+    falls: usize,
 }

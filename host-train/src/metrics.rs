@@ -27,6 +27,8 @@ pub struct MetricsLog {
     rows: Vec<BTreeMap<String, f64>>,
     /// The event file beside the CSV, appended to on each write.
     events: std::sync::Mutex<Option<tfevents::EventFile>>,
+    /// Rows carried over from before a resume: earlier event files hold them already.
+    events_start: usize,
 }
 
 impl MetricsLog {
@@ -76,7 +78,7 @@ impl MetricsLog {
             *events = Some(tfevents::EventFile::create(dir)?);
         }
         let file = events.as_mut().expect("created above");
-        let from = file.rows_written.min(self.rows.len());
+        let from = (self.events_start + file.rows_written).min(self.rows.len());
         file.append(&self.rows[from..])
     }
 
@@ -105,6 +107,16 @@ impl MetricsLog {
             }
             log.push(row);
         }
+        Ok(log)
+    }
+
+    /// The log of a run resumed at iteration `next_iteration`: the rows of its `metrics.csv`
+    /// before that iteration (a resumed run keeps its history; the event file of this
+    /// process gets only the new rows).
+    pub fn resume_from_csv(path: &Path, next_iteration: usize) -> Result<Self, String> {
+        let mut log = Self::read_csv(path)?;
+        log.truncate_after(next_iteration as f64 - 1.0);
+        log.events_start = log.rows.len();
         Ok(log)
     }
 
@@ -238,6 +250,16 @@ mod tests {
         assert_eq!(back.rows(), log.rows());
         back.truncate_after(1.0);
         assert_eq!(back.rows().len(), 2);
+        // A run resumed at iteration 2 keeps rows 0 and 1 and writes only new rows to its
+        // own event file.
+        let mut resumed = MetricsLog::resume_from_csv(&dir.join("m.csv"), 2).unwrap();
+        assert_eq!(resumed.rows(), &log.rows()[..2]);
+        resumed.push(BTreeMap::from([("iteration".into(), 2.0)]));
+        let sub = dir.join("resumed");
+        std::fs::create_dir_all(&sub).unwrap();
+        resumed.write_csv(&sub.join("metrics.csv")).unwrap();
+        assert_eq!(resumed.events.lock().unwrap().as_ref().unwrap().rows_written, 1);
+        assert_eq!(MetricsLog::read_csv(&sub.join("metrics.csv")).unwrap().rows().len(), 3);
 
         std::fs::write(dir.join("bad.csv"), "iteration,loss/value\n0,1\n1,abc\n").unwrap();
         let err = MetricsLog::read_csv(&dir.join("bad.csv")).err().unwrap();

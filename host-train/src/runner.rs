@@ -120,6 +120,12 @@ impl Runner {
         checkpoint::load(dir, &mut self.ppo, true)?;
         self.iteration = checkpoint::load_iteration(dir)?;
         self.last_checkpoint = Some(dir.to_path_buf());
+        // Resuming into a run directory that has a history: keep it up to the checkpoint.
+        let csv = self.run_dir.join("metrics.csv");
+        if csv.is_file() {
+            self.metrics = MetricsLog::resume_from_csv(&csv, self.iteration)
+                .map_err(|e| TrainError::Io { path: csv.display().to_string(), source: std::io::Error::other(e) })?;
+        }
         Ok(())
     }
 

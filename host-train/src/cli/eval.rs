@@ -368,6 +368,9 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from("runs/eval").join(format!("{}.json", crate::checkpoint::display_name(&checkpoint))));
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
     std::fs::write(&out, serde_json::to_string_pretty(&report)?).with_context(|| format!("writing {}", out.display()))?;
     eprintln!("report: {}", out.display());
     Ok(())

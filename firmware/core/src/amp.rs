@@ -96,13 +96,22 @@ mod tests {
 
     #[test]
     fn feet_are_below_the_base_at_the_nominal_pose() {
-        let s = amp_state(&Q0_RAD, &[0.0; 18], [0.3, 0.0, 0.0], [0.0; 3], [0.0, 0.0, 1.0]);
+        let s = amp_state(
+            &Q0_RAD,
+            &[0.0; 18],
+            [0.3, 0.0, 0.0],
+            [0.0; 3],
+            [0.0, 0.0, 1.0],
+        );
         assert_eq!(s[36], 0.3);
         for leg in 0..6 {
             assert!(s[AMP_FOOT_POS.start + 3 * leg + 2] < -0.25);
         }
         // Upright: the height is minus the feet's mean z in the base frame.
-        let mean_z = (0..6).map(|l| s[AMP_FOOT_POS.start + 3 * l + 2]).sum::<f32>() / 6.0;
+        let mean_z = (0..6)
+            .map(|l| s[AMP_FOOT_POS.start + 3 * l + 2])
+            .sum::<f32>()
+            / 6.0;
         assert!((s[AMP_BASE_HEIGHT] + mean_z).abs() < 1e-6);
     }
 
@@ -117,10 +126,20 @@ mod tests {
         // Pitched by 30 deg on a slope with the feet where the body's frame puts them on
         // flat ground: measured along gravity, not along the base's z axis.
         let (s, c) = (0.5f32, 0.75f32.sqrt());
-        let flat = [[0.2f32, 0.0, -0.3], [-0.2, 0.0, -0.3], [0.0, 0.2, -0.3], [0.0, -0.2, -0.3], [0.2, 0.1, -0.3], [-0.2, 0.1, -0.3]];
+        let flat = [
+            [0.2f32, 0.0, -0.3],
+            [-0.2, 0.0, -0.3],
+            [0.0, 0.2, -0.3],
+            [0.0, -0.2, -0.3],
+            [0.2, 0.1, -0.3],
+            [-0.2, 0.1, -0.3],
+        ];
         let up = [-s, 0.0, c];
         let expected = {
-            let mut h: Vec<f32> = flat.iter().map(|f| -(f[0] * up[0] + f[2] * up[2])).collect();
+            let mut h: Vec<f32> = flat
+                .iter()
+                .map(|f| -(f[0] * up[0] + f[2] * up[2]))
+                .collect();
             h.sort_by(|a, b| b.partial_cmp(a).unwrap());
             (h[0] + h[1] + h[2]) / 3.0
         };

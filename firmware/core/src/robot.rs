@@ -179,10 +179,8 @@ pub const THIGH_RADIUS_M: f32 = 0.03;
 /// Shank radius (a solid cylinder: inertia and collision shape; the foot sphere at its end).
 pub const SHANK_RADIUS_M: f32 = 0.018;
 /// Total mass of the robot.
-pub const TOTAL_MASS_KG: f32 = TRUNK_MASS_KG
-    + 4.0 * 0.5
-    + 2.0 * 0.6
-    + NUM_LEGS as f32 * (THIGH_MASS_KG + SHANK_MASS_KG);
+pub const TOTAL_MASS_KG: f32 =
+    TRUNK_MASS_KG + 4.0 * 0.5 + 2.0 * 0.6 + NUM_LEGS as f32 * (THIGH_MASS_KG + SHANK_MASS_KG);
 
 // ---------------------------------------------------------------------------------------
 // Nominal pose and limits, per joint kind (the same for every leg).

@@ -51,7 +51,10 @@ mod tests {
     #[test]
     fn policy_runs_at_50_hz() {
         assert!((POLICY_DT_S - 0.02).abs() < 1e-7);
-        assert_eq!((EPISODE_LENGTH_S / POLICY_DT_S).round() as usize, EPISODE_LENGTH_STEPS);
+        assert_eq!(
+            (EPISODE_LENGTH_S / POLICY_DT_S).round() as usize,
+            EPISODE_LENGTH_STEPS
+        );
     }
 
     #[test]

@@ -13,4 +13,5 @@ pub mod metrics;
 pub mod nn;
 pub mod priors;
 pub mod runner;
+pub mod sweep;
 pub mod threads;

@@ -26,6 +26,9 @@ enum Command {
     Eval(cli::eval::EvalArgs),
     /// Draw a run's or checkpoint's metrics.csv as the training plots.
     Plot(cli::plot::PlotArgs),
+    /// Many trainings from one file (presets x variants x seeds), each evaluated by the
+    /// suite, locally or as a Slurm job array, gathered into one report.
+    Sweep(cli::sweep::SweepArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -39,6 +42,7 @@ fn main() -> std::process::ExitCode {
         Command::Play(args) => cli::play::run(args),
         Command::Eval(args) => cli::eval::run(args),
         Command::Plot(args) => cli::plot::run(args),
+        Command::Sweep(args) => cli::sweep::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

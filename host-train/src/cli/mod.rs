@@ -7,5 +7,6 @@ pub mod pretrain;
 pub mod priors;
 pub mod replay;
 pub mod suite;
+pub mod sweep;
 pub mod terrain_test;
 pub mod train;

@@ -420,16 +420,16 @@ pub fn write_gait(path: &Path, gait: &Gait) -> anyhow::Result<()> {
 mod tests {
     use super::*;
 
-    /// Dark pixels of `text` drawn at 12 px in [`FONT`].
+    /// Inked pixels of `text` drawn at the smallest text size of the plots in [`FONT`].
     fn ink(text: &str) -> usize {
         let (w, h) = (120u32, 24u32);
         let mut buf = vec![255u8; (w * h * 3) as usize];
         {
             let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-            root.draw(&Text::new(text.to_string(), (6, 4), (FONT, 12))).unwrap();
+            root.draw(&Text::new(text.to_string(), (6, 4), (FONT, LABEL_PX))).unwrap();
             root.present().unwrap();
         }
-        buf.chunks(3).filter(|p| p[0] < 128).count()
+        buf.chunks(3).filter(|p| p[0] < 200).count()
     }
 
     #[test]

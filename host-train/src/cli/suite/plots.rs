@@ -73,8 +73,7 @@ pub fn draw_all(dir: &Path, reports: &[ControllerReport]) -> Result<Vec<PathBuf>
             s.time_s.iter().zip(v).map(|(t, y)| (*t as f64, *y as f64)).collect()
         };
         let name = super::sine::AXES[axis];
-        let quantity = if axis == 2 { "yaw rate" } else { "velocity" };
-        let mut tracking = Panel::new(format!("{name} command: tracking (command dashed)"), "time (s)", format!("{name} {quantity} ({unit})"))
+        let mut tracking = Panel::new(format!("{name} command: tracking (command dashed)"), "time (s)", format!("{name} ({unit})"))
             .line(Line::new("command", trace(first, &first.commanded), BLACK).dashed());
         for (i, r, s) in &runs {
             tracking = tracking.line(Line::new(format!("{} measured", r.name), trace(s, &s.measured), color(*i)));

@@ -1,10 +1,11 @@
 //! Recording a robot's motion at the policy rate: CSV output and the standard plots
-//! (base height, base velocity against the command, roll and pitch, gait diagram).
+//! (base height, base velocity and yaw rate against the command, roll and pitch, gait
+//! diagram).
 
 use crate::frames::rotate_inverse;
-use crate::plot::{gait_diagram, time_series, Series};
+use crate::plot::{trace, write_gait, write_panels, Gait, Line, Panel, COLORS};
 use crate::robot::RobotState;
-use hexapod_core::robot::{LEG_NAMES, NUM_JOINTS};
+use hexapod_core::robot::NUM_JOINTS;
 use std::io::Write;
 use std::path::Path;
 
@@ -75,15 +76,13 @@ impl Trajectory {
         Ok(())
     }
 
-    /// Writes `motion.png` (height, velocity vs command, attitude) and `gait.png` into `dir`.
+    /// Writes `motion.png` (height, planar velocity and yaw rate against the command,
+    /// attitude) and `gait.png` into `dir`.
     pub fn write_plots(&self, dir: &Path) -> anyhow::Result<()> {
         let t: Vec<f32> = self.samples.iter().map(|s| s.time_s).collect();
-        let h: Vec<f32> = self.samples.iter().map(|s| s.height_m).collect();
         let v = self.lin_vel_base();
-        let vx: Vec<f32> = v.iter().map(|v| v[0]).collect();
-        let vy: Vec<f32> = v.iter().map(|v| v[1]).collect();
-        let cx: Vec<f32> = self.samples.iter().map(|s| s.command[0]).collect();
-        let cy: Vec<f32> = self.samples.iter().map(|s| s.command[1]).collect();
+        let wz = self.samples.iter().map(|s| rotate_inverse(s.state.base_quat_xyzw, s.state.base_ang_vel_world_rad_s)[2]);
+        let cmd = |k: usize| trace(&t, self.samples.iter().map(move |s| s.command[k]));
         let (roll, pitch): (Vec<f32>, Vec<f32>) = self
             .samples
             .iter()
@@ -92,25 +91,26 @@ impl Trajectory {
                 (r.to_degrees(), p.to_degrees())
             })
             .unzip();
-        time_series(
-            &dir.join("motion.png"),
-            &t,
-            &[
-                ("Base height above terrain [m]", vec![Series { label: "height", values: &h }]),
-                (
-                    "Base velocity (base frame) [m/s]",
-                    vec![
-                        Series { label: "vx", values: &vx },
-                        Series { label: "vx command", values: &cx },
-                        Series { label: "vy", values: &vy },
-                        Series { label: "vy command", values: &cy },
-                    ],
-                ),
-                ("Attitude [deg]", vec![Series { label: "roll", values: &roll }, Series { label: "pitch", values: &pitch }]),
-            ],
-        )?;
+        let (vx_color, vy_color) = (COLORS[0], COLORS[1]);
+        let panels = [
+            Panel::new("base height above the terrain", "time (s)", "base height (m)")
+                .line(Line::nth(0, "height", trace(&t, self.samples.iter().map(|s| s.height_m)))),
+            Panel::new("base velocity (base frame): measured, command dashed", "time (s)", "velocity (m/s)")
+                .line(Line::new("vx", trace(&t, v.iter().map(|v| v[0])), vx_color))
+                .line(Line::new("vx command", cmd(0), vx_color).dashed())
+                .line(Line::new("vy", trace(&t, v.iter().map(|v| v[1])), vy_color))
+                .line(Line::new("vy command", cmd(1), vy_color).dashed()),
+            Panel::new("yaw rate (base frame): measured, command dashed", "time (s)", "yaw rate (rad/s)")
+                .line(Line::new("wz", trace(&t, wz), COLORS[2]))
+                .line(Line::new("wz command", cmd(2), COLORS[2]).dashed()),
+            Panel::new("attitude", "time (s)", "angle (deg)")
+                .line(Line::nth(0, "roll", trace(&t, roll)))
+                .line(Line::nth(1, "pitch", trace(&t, pitch))),
+        ];
+        write_panels(&dir.join("motion.png"), None, 1, (1000, 270), &panels)?;
         let masks: Vec<u8> = self.samples.iter().map(|s| s.contact_mask).collect();
-        gait_diagram(&dir.join("gait.png"), &t, &masks, &LEG_NAMES)?;
+        let dt_s = if t.len() > 1 { t[1] - t[0] } else { hexapod_core::timing::POLICY_DT_S };
+        write_gait(&dir.join("gait.png"), &Gait { title: "gait diagram: feet in stance", time_s: &t, stance_masks: &masks, dt_s })?;
         Ok(())
     }
 }

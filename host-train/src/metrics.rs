@@ -5,20 +5,49 @@
 
 pub mod tfevents;
 
-use plotters::prelude::*;
+use host_sim::plot::{write_panels, Line, Panel};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-/// Plot groups: file stem and the key prefixes it draws.
-pub const PLOT_GROUPS: &[(&str, &[&str])] = &[
-    ("reward_terms", &["reward/", "episode/rew_"]),
-    ("episode_length", &["episode/length"]),
-    ("terrain_level", &["episode/terrain_level"]),
-    ("discriminator", &["amp/d_", "amp/style"]),
-    ("tracking_error", &["tracking/"]),
-    ("estimator_error", &["estimator/"]),
-    ("losses", &["loss/"]),
-    ("throughput", &["perf/env_steps_per_s"]),
+/// One panel of a training plot: title, y axis name (quantity and unit), the key prefixes
+/// it draws, and whether each key gets a panel of its own (quantities of unlike scale).
+pub struct PlotPanel {
+    /// Title; for a panel per key, the key is appended.
+    pub title: &'static str,
+    /// y axis name.
+    pub y_label: &'static str,
+    /// Keys drawn: those starting with one of these.
+    pub prefixes: &'static [&'static str],
+    /// One panel per key instead of one for all.
+    pub per_key: bool,
+}
+
+const fn panel(title: &'static str, y_label: &'static str, prefixes: &'static [&'static str]) -> PlotPanel {
+    PlotPanel { title, y_label, prefixes, per_key: false }
+}
+
+/// Plot files: file stem and its panels, stacked (m/s and rad/s never share an axis).
+pub const PLOT_GROUPS: &[(&str, &[PlotPanel])] = &[
+    (
+        "reward_terms",
+        &[
+            panel("reward per policy step (reward/*)", "reward per step", &["reward/"]),
+            panel("episode reward terms (episode/rew_*: episode sum / episode length)", "reward per second", &["episode/rew_"]),
+        ],
+    ),
+    ("episode_length", &[panel("mean episode length", "episode length (policy steps)", &["episode/length"])]),
+    ("terrain_level", &[panel("mean terrain level (curriculum row)", "terrain level (row)", &["episode/terrain_level"])]),
+    ("discriminator", &[panel("discriminator output (+1 like the prior, -1 not) and style reward", "D output / style reward", &["amp/d_", "amp/style"])]),
+    (
+        "tracking_error",
+        &[
+            panel("planar velocity tracking error", "velocity error (m/s)", &["tracking/lin_vel"]),
+            panel("yaw rate tracking error", "yaw rate error (rad/s)", &["tracking/yaw_rate"]),
+        ],
+    ),
+    ("estimator_error", &[panel("velocity estimator error", "velocity error (m/s)", &["estimator/"])]),
+    ("losses", &[PlotPanel { title: "loss", y_label: "loss", prefixes: &["loss/"], per_key: true }]),
+    ("throughput", &[panel("simulation throughput", "env steps per second", &["perf/env_steps_per_s"])]),
 ];
 
 /// All rows of a run.
@@ -125,76 +154,56 @@ impl MetricsLog {
         self.rows.retain(|r| r.get("iteration").is_some_and(|i| *i <= last_iteration));
     }
 
+    /// The `(iteration, value)` points of `key` (finite values only).
+    fn points(&self, key: &str) -> Vec<(f64, f64)> {
+        self.rows.iter().filter_map(|r| Some((*r.get("iteration")?, *r.get(key)?))).filter(|(_, y)| y.is_finite()).collect()
+    }
+
     /// Draws one PNG per non-empty plot group into `dir`; returns the files written.
     pub fn plot(&self, dir: &Path) -> Result<Vec<PathBuf>, String> {
         let mut written = Vec::new();
         let cols = self.columns();
-        for (stem, prefixes) in PLOT_GROUPS {
-            let keys: Vec<&String> = cols.iter().filter(|c| prefixes.iter().any(|p| c.starts_with(p))).collect();
-            let series: Vec<(String, Vec<(f64, f64)>)> = keys
-                .iter()
-                .map(|k| {
-                    let pts = self
-                        .rows
-                        .iter()
-                        .filter_map(|r| Some((*r.get("iteration")?, *r.get(*k)?)))
-                        .filter(|(_, y)| y.is_finite())
-                        .collect();
-                    (k.to_string(), pts)
-                })
-                .filter(|(_, p): &(String, Vec<(f64, f64)>)| !p.is_empty())
-                .collect();
-            if series.is_empty() {
+        for (stem, group) in PLOT_GROUPS {
+            let mut panels = Vec::new();
+            for spec in group.iter() {
+                let keys: Vec<&String> = cols.iter().filter(|c| spec.prefixes.iter().any(|p| c.starts_with(p))).collect();
+                let lines: Vec<(&String, Vec<(f64, f64)>)> =
+                    keys.into_iter().map(|k| (k, self.points(k))).filter(|(_, p)| !p.is_empty()).collect();
+                if spec.per_key {
+                    for (i, (key, pts)) in lines.into_iter().enumerate() {
+                        panels.push(Panel::new(key.as_str(), "iteration", spec.y_label).integer_x().line(Line::nth(i, key.as_str(), pts)));
+                    }
+                } else if !lines.is_empty() {
+                    let mut p = Panel::new(spec.title, "iteration", spec.y_label).integer_x();
+                    for (i, (key, pts)) in lines.into_iter().enumerate() {
+                        p = p.line(Line::nth(i, legend_label(key, spec.prefixes), pts));
+                    }
+                    panels.push(p);
+                }
+            }
+            if panels.is_empty() {
                 continue;
             }
             let path = dir.join(format!("{stem}.png"));
-            line_plot(&path, stem, "iteration", &series)?;
+            let per_key = group.iter().any(|g| g.per_key);
+            let (columns, size) = if per_key { (2, (620, 300)) } else { (1, (1100, 420)) };
+            write_panels(&path, None, columns, size, &panels).map_err(|e| format!("{}: {e}", path.display()))?;
             written.push(path);
         }
         Ok(written)
     }
 }
 
-/// A line plot of named series into a PNG.
-pub fn line_plot(path: &Path, title: &str, x_label: &str, series: &[(String, Vec<(f64, f64)>)]) -> Result<(), String> {
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for (_, pts) in series {
-        for &(x, y) in pts {
-            x0 = x0.min(x);
-            x1 = x1.max(x);
-            y0 = y0.min(y);
-            y1 = y1.max(y);
-        }
-    }
-    if x1 <= x0 {
-        x1 = x0 + 1.0;
-    }
-    let pad = ((y1 - y0).abs() * 0.05).max(1e-3);
-    let root = BitMapBackend::new(path, (900, 540)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 22))
-        .margin(12)
-        .x_label_area_size(36)
-        .y_label_area_size(60)
-        .build_cartesian_2d(x0..x1, (y0 - pad)..(y1 + pad))
-        .map_err(|e| e.to_string())?;
-    chart.configure_mesh().x_desc(x_label).draw().map_err(|e| e.to_string())?;
-    for (i, (name, pts)) in series.iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
-        chart
-            .draw_series(LineSeries::new(pts.iter().copied(), color.stroke_width(2)))
-            .map_err(|e| e.to_string())?
-            .label(name.as_str())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
-    }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()
-        .map_err(|e| e.to_string())?;
-    root.present().map_err(|e| e.to_string())
+/// A key's legend label: without the panel's prefix when that names a family
+/// (`episode/rew_joint_acc` -> `joint_acc`), the whole key otherwise.
+fn legend_label(key: &str, prefixes: &[&str]) -> String {
+    prefixes
+        .iter()
+        .filter(|p| p.ends_with('/') || p.ends_with('_'))
+        .find_map(|p| key.strip_prefix(p))
+        .filter(|rest| !rest.is_empty())
+        .unwrap_or(key)
+        .to_string()
 }
 
 #[cfg(test)]

@@ -7,7 +7,6 @@ use crate::cli::replay::{render_replay, ReplayFrame};
 use crate::cli::eval::{contact_mask, SETTLE_STEPS};
 use crate::config::EnvKind;
 use crate::env::make_env;
-use crate::metrics::line_plot;
 use anyhow::Context;
 use clap::Args;
 use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_JOINT_POS, AMP_STATE_DIM};
@@ -19,6 +18,7 @@ use hexapod_core::robot::{FOOT_RADIUS_M, JOINT_NAMES, LEG_NAMES, NUM_LEGS, TRIPO
 use hexapod_core::timing::POLICY_DT_S;
 use host_sim::env::HexapodEnv;
 use host_sim::frames::{quat_from_yaw, rotate};
+use host_sim::plot::{write_gait, write_panels, Gait, Line, Panel, COLORS};
 use host_sim::terrain::{Terrain, TerrainConfig};
 use host_sim::vec_env::VecEnv;
 use std::fmt::Write as _;
@@ -167,6 +167,7 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
     let (mut x, mut y, mut yaw) = (0.0f32, 0.0f32, 0.0f32);
     let (mut vel, mut cmd_series, mut q_series) = (vec![Vec::new(); 3], vec![Vec::new(); 3], vec![Vec::new(); 6]);
     let mut clearance_series = vec![Vec::new(); NUM_LEGS];
+    let (mut time_s, mut stance_masks) = (Vec::with_capacity(args.steps), Vec::with_capacity(args.steps));
     let mut summary = Summary::default();
     for step in 0..args.steps {
         if let Some(c) = command {
@@ -198,6 +199,8 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
             }
         };
         let res = play_env.env().step(&act.actions);
+        time_s.push(t);
+        stance_masks.push(contact_mask(p));
         if step >= SETTLE_STEPS {
             for k in 0..3 {
                 summary.sum_v[k] += v[k] as f64;
@@ -241,22 +244,7 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
         obs = res.obs;
     }
     std::fs::write(out.join("trajectory.csv"), csv)?;
-    let names = ["vx", "vy", "wz"];
-    let mut series = Vec::new();
-    for k in 0..3 {
-        series.push((format!("{} measured", names[k]), vel[k].clone()));
-        series.push((format!("{} command", names[k]), cmd_series[k].clone()));
-    }
-    line_plot(&out.join("velocity_tracking.png"), "velocity tracking", "t (s)", &series).map_err(anyhow::Error::msg)?;
-    let joint_series: Vec<(String, Vec<(f64, f64)>)> =
-        q_series.into_iter().enumerate().map(|(j, s)| (format!("q {}", JOINT_NAMES[j]), s)).collect();
-    line_plot(&out.join("joints_rf_rm.png"), "joint angles of RF and RM (rad)", "t (s)", &joint_series).map_err(anyhow::Error::msg)?;
-    if matches!(play_env, PlayEnv::Sim(_)) {
-        let series: Vec<(String, Vec<(f64, f64)>)> =
-            clearance_series.into_iter().enumerate().map(|(leg, s)| (LEG_NAMES[leg].to_string(), s)).collect();
-        line_plot(&out.join("foot_clearance.png"), "foot clearance above the ground under it (m)", "t (s)", &series)
-            .map_err(anyhow::Error::msg)?;
-    }
+    write_plots(&out, &time_s, &vel, &cmd_series, q_series, &stance_masks, matches!(play_env, PlayEnv::Sim(_)).then_some(clearance_series))?;
     if !args.no_replay {
         let ground = |x: f32, y: f32| match &play_env {
             PlayEnv::Sim(env) => env.terrain().height_at_m(x, y),
@@ -291,4 +279,63 @@ struct Summary {
     tripod: usize,
     samples: usize,
     falls: usize,
+}
+
+/// `play`'s plots: velocity against the command (linear in m/s, yaw rate in rad/s, one
+/// panel each), RF and RM joint angles, the gait diagram (feet in stance: contact force
+/// above [`host_sim::rewards::STANCE_FORCE_N`]) and, on the simulator, each foot's
+/// clearance (one small panel per leg, laid out as on the robot seen from above).
+fn write_plots(
+    out: &std::path::Path,
+    time_s: &[f32],
+    vel: &[Vec<(f64, f64)>],
+    cmd: &[Vec<(f64, f64)>],
+    q_series: Vec<Vec<(f64, f64)>>,
+    stance_masks: &[u8],
+    clearance_m: Option<Vec<Vec<(f64, f64)>>>,
+) -> anyhow::Result<()> {
+    let (vx, vy, wz) = (COLORS[0], COLORS[1], COLORS[2]);
+    let velocity = [
+        Panel::new("linear velocity (base frame): measured, command dashed", "time (s)", "velocity (m/s)")
+            .line(Line::new("vx", vel[0].clone(), vx))
+            .line(Line::new("vx command", cmd[0].clone(), vx).dashed())
+            .line(Line::new("vy", vel[1].clone(), vy))
+            .line(Line::new("vy command", cmd[1].clone(), vy).dashed()),
+        Panel::new("yaw rate: measured, command dashed", "time (s)", "yaw rate (rad/s)")
+            .line(Line::new("wz", vel[2].clone(), wz))
+            .line(Line::new("wz command", cmd[2].clone(), wz).dashed()),
+    ];
+    write_panels(&out.join("velocity_tracking.png"), None, 1, (1000, 340), &velocity)?;
+    let mut q = q_series.into_iter();
+    let joints: Vec<Panel> = ["RF", "RM"]
+        .iter()
+        .enumerate()
+        .map(|(leg, name)| {
+            (0..3).fold(Panel::new(format!("{name} joint angles"), "time (s)", "joint angle (rad)"), |p, k| {
+                p.line(Line::nth(k, JOINT_NAMES[3 * leg + k], q.next().unwrap_or_default()))
+            })
+        })
+        .collect();
+    write_panels(&out.join("joints_rf_rm.png"), None, 1, (1000, 320), &joints)?;
+    let dt_s = if time_s.len() > 1 { time_s[1] - time_s[0] } else { POLICY_DT_S };
+    let title = format!("gait diagram: feet in stance (contact force > {} N)", host_sim::rewards::STANCE_FORCE_N);
+    write_gait(&out.join("gait.png"), &Gait { title: &title, time_s, stance_masks, dt_s })?;
+    if let Some(clearance_m) = clearance_m {
+        // Robot seen from above: left legs in the left column, front at the top; one y range
+        // for all so the panels compare.
+        let cm = |leg: usize| -> Vec<(f64, f64)> { clearance_m[leg].iter().map(|(t, c)| (*t, 100.0 * c)).collect() };
+        let (lo, hi) = (0..NUM_LEGS).flat_map(|l| cm(l)).filter(|p| p.1.is_finite()).fold((0.0f64, 1.0f64), |(lo, hi), p| (lo.min(p.1), hi.max(p.1)));
+        let pad = 0.05 * (hi - lo);
+        let panels: Vec<Panel> = [3usize, 0, 4, 1, 5, 2]
+            .iter()
+            .map(|&leg| {
+                let color = if TRIPOD_A_MASK & (1 << leg) != 0 { host_sim::plot::TRIPOD_A_COLOR } else { host_sim::plot::TRIPOD_B_COLOR };
+                Panel::new(LEG_NAMES[leg].to_uppercase(), "time (s)", "clearance (cm)")
+                    .y_range(lo - pad, hi + pad)
+                    .line(Line::new(LEG_NAMES[leg], cm(leg), color))
+            })
+            .collect();
+        write_panels(&out.join("foot_clearance.png"), Some("foot clearance above the ground under it"), 2, (560, 230), &panels)?;
+    }
+    Ok(())
 }

@@ -60,7 +60,7 @@ pub fn render_replay(path: &Path, frames: &[ReplayFrame], ground_height_m: &dyn 
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let half = VIEW_HALF_M as f64;
         let mut chart = ChartBuilder::on(&root)
-            .caption(format!("t = {:.2} s", k as f32 * POLICY_DT_S), ("sans-serif", 18))
+            .caption(format!("t = {:.2} s", k as f32 * POLICY_DT_S), (host_sim::plot::FONT, 18))
             .margin(8)
             .build_cartesian_3d(
                 px as f64 - half..px as f64 + half,

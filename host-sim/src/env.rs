@@ -5,20 +5,19 @@
 use crate::config::{ConfigError, EnvConfig};
 use crate::curriculum::{curriculum_step, CommandProgress, LevelChange};
 use crate::frames::{quat_from_yaw, quat_mul, rotate, rotate_inverse, yaw_rad};
+use crate::observe;
 use crate::reference::ReferenceState;
 use crate::rewards::{self, RewardInputs, TERM_NAMES};
 use crate::robot::{BuildError, ContactState, DriveParams, RobotState, RobotWorld};
 use crate::terrain::Terrain;
 use crate::urdf_model::{UrdfError, UrdfModel};
 use crate::vec_env::{Observations, StepResult, VecEnv};
-use hexapod_core::amp::{amp_state, AMP_STATE_DIM};
+use hexapod_core::amp::AMP_STATE_DIM;
 use hexapod_core::control::action_to_targets;
 use hexapod_core::obs::{
-    actor_obs, height_scan_point_m, proprio_noise_scale, proprio_obs, ProprioHistory,
-    ACTION_CLIP, ACTOR_OBS_DIM, CONTACT_FORCE_SCALE, HEIGHT_SCALE, HEIGHT_SCAN_DIM,
-    HEIGHT_SCAN_OFFSET_M, HISTORY_DIM, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_BASE_HEIGHT,
-    PRIV_COLLISIONS, PRIV_CONTACT_FORCES, PRIV_FRICTION, PRIV_LIN_VEL, PRIV_PERTURBATION,
-    PROPRIO_DIM,
+    actor_obs, height_scan_point_m, proprio_noise_scale, ProprioHistory, ACTION_CLIP,
+    ACTOR_OBS_DIM, HEIGHT_SCALE, HEIGHT_SCAN_DIM, HEIGHT_SCAN_OFFSET_M, HISTORY_DIM,
+    PRIVILEGED_DIM, PROPRIO_DIM,
 };
 use hexapod_core::kinematics::foot_position_base;
 use hexapod_core::robot::{
@@ -36,7 +35,7 @@ use std::sync::Arc;
 /// Nominal joint stiffness (Kp1 * Kp2), N m/rad.
 const NOMINAL_STIFFNESS_NM_PER_RAD: f32 = CSP_KP1_PER_S * CSP_KP2_NMS_PER_RAD;
 /// Spawn height above the terrain, m (the robot settles onto its feet).
-const SPAWN_HEIGHT_M: f32 = 0.33;
+pub const SPAWN_HEIGHT_M: f32 = 0.33;
 /// Least gap between a foot and the ground under it at spawn, m.
 const SPAWN_FOOT_GAP_M: f32 = 0.01;
 
@@ -387,7 +386,7 @@ impl VecEnv for HexapodEnv {
 /// [`SPAWN_HEIGHT_M`] above the ground under the base, or higher where a foot would
 /// otherwise start inside the ground under it (a foot over the first step of a stair tile,
 /// or over a block). A foot spawned inside a heightfield falls through it.
-fn spawn_height_m(terrain: &Terrain, xy: [f32; 2], yaw_rad: f32, q: &[f32; NUM_JOINTS], min_height_m: f32) -> f32 {
+pub fn spawn_height_m(terrain: &Terrain, xy: [f32; 2], yaw_rad: f32, q: &[f32; NUM_JOINTS], min_height_m: f32) -> f32 {
     let (sin, cos) = yaw_rad.sin_cos();
     let mut z = terrain.height_at_m(xy[0], xy[1]) + min_height_m;
     for leg in Leg::ALL {
@@ -397,6 +396,14 @@ fn spawn_height_m(terrain: &Terrain, xy: [f32; 2], yaw_rad: f32, q: &[f32; NUM_J
         z = z.max(terrain.height_at_m(fx, fy) - p[2] + FOOT_RADIUS_M + SPAWN_FOOT_GAP_M);
     }
     z
+}
+
+/// The termination rule: the trunk touches the ground, the base tilts more than
+/// `max_tilt_deg` from upright, or the state is not finite.
+pub fn terminated(s: &RobotState, trunk_contact: bool, max_tilt_deg: f32) -> bool {
+    let gravity = rotate_inverse(s.base_quat_xyzw, [0.0, 0.0, -1.0]);
+    let finite = s.base_pos_world_m.iter().chain(s.q_rad.iter()).chain(s.qdot_rad_s.iter()).all(|x| x.is_finite());
+    trunk_contact || gravity[2] > -max_tilt_deg.to_radians().cos() || !finite
 }
 
 fn uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f32; 2]) -> f32 {
@@ -526,10 +533,7 @@ impl Slot {
 
     /// o^p of the current state, with noise when configured.
     fn proprio(&mut self, config: &EnvConfig) -> [f32; PROPRIO_DIM] {
-        let s = &self.state;
-        let ang_vel = rotate_inverse(s.base_quat_xyzw, s.base_ang_vel_world_rad_s);
-        let gravity = rotate_inverse(s.base_quat_xyzw, [0.0, 0.0, -1.0]);
-        let mut o = proprio_obs(ang_vel, gravity, &s.q_rad, &s.qdot_rad_s);
+        let mut o = observe::proprio(&self.state);
         if config.observation_noise {
             let scale = proprio_noise_scale();
             for (x, n) in o.iter_mut().zip(scale) {
@@ -547,34 +551,9 @@ impl Slot {
     /// Fills the observation buffers from the current state (history already updated).
     fn observe(&mut self, proprio: [f32; PROPRIO_DIM]) {
         let s = self.state;
-        let lin_vel = rotate_inverse(s.base_quat_xyzw, s.base_lin_vel_world_m_s);
-        let ang_vel = rotate_inverse(s.base_quat_xyzw, s.base_ang_vel_world_rad_s);
         let height = self.base_height_m();
         self.actor = actor_obs(self.command, &self.prev_action, &proprio);
-        // Privileged state.
-        let p = &mut self.privileged;
-        for k in 0..3 {
-            p[PRIV_LIN_VEL.start + k] = lin_vel[k] * LIN_VEL_SCALE;
-        }
-        p[PRIV_BASE_HEIGHT] = height;
-        p[PRIV_FRICTION] = self.friction;
-        for leg in 0..NUM_LEGS {
-            for k in 0..3 {
-                p[PRIV_CONTACT_FORCES.start + 3 * leg + k] =
-                    self.contacts.foot_force_world_n[leg][k] * CONTACT_FORCE_SCALE;
-            }
-        }
-        let push = self.last_push_m_s;
-        let norm = (push[0] * push[0] + push[1] * push[1] + push[2] * push[2]).sqrt();
-        for k in 0..3 {
-            p[PRIV_PERTURBATION.start + k] = push[k];
-            p[PRIV_PERTURBATION.start + 3 + k] = if norm > 1e-6 { push[k] / norm } else { 0.0 };
-        }
-        p[PRIV_COLLISIONS.start] = self.contacts.trunk as u8 as f32;
-        for leg in 0..NUM_LEGS {
-            p[PRIV_COLLISIONS.start + 1 + leg] = self.contacts.thighs[leg] as u8 as f32;
-            p[PRIV_COLLISIONS.start + 7 + leg] = self.contacts.shanks[leg] as u8 as f32;
-        }
+        self.privileged = observe::privileged(&s, height, self.friction, &self.contacts, self.last_push_m_s);
         // Height scan in the yaw-aligned frame.
         let yaw = yaw_rad(s.base_quat_xyzw);
         let (sin, cos) = yaw.sin_cos();
@@ -584,7 +563,7 @@ impl Slot {
             let h = self.terrain.height_at_m(bx + cos * px - sin * py, by + sin * px + cos * py);
             self.heights[k] = (bz - HEIGHT_SCAN_OFFSET_M - h).clamp(-1.0, 1.0) * HEIGHT_SCALE;
         }
-        self.amp = amp_state(&s.q_rad, &s.qdot_rad_s, lin_vel, ang_vel, rotate_inverse(s.base_quat_xyzw, [0.0, 0.0, 1.0]));
+        self.amp = observe::amp(&s);
     }
 
     fn step(&mut self, config: &EnvConfig, action: &[f32], max_steps: usize) -> SlotStep {
@@ -646,14 +625,10 @@ impl Slot {
         for (acc, v) in self.term_sums.iter_mut().zip(terms.values) {
             *acc += v;
         }
-        let gravity = rotate_inverse(s.base_quat_xyzw, [0.0, 0.0, -1.0]);
-        let finite = s.base_pos_world_m.iter().chain(s.q_rad.iter()).chain(s.qdot_rad_s.iter()).all(|x| x.is_finite());
-        let terminated = self.contacts.trunk
-            || gravity[2] > -config.max_tilt_deg.to_radians().cos()
-            || !finite;
+        let terminated = terminated(&s, self.contacts.trunk, config.max_tilt_deg);
         let time_out = self.step >= max_steps;
         let done = terminated || time_out;
-        let amp_next = amp_state(&s.q_rad, &s.qdot_rad_s, lin_vel, ang_vel, rotate_inverse(s.base_quat_xyzw, [0.0, 0.0, 1.0]));
+        let amp_next = observe::amp(&s);
         self.last_qdot = s.qdot_rad_s;
         self.prev_action = self.action;
 

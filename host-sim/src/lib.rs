@@ -14,6 +14,8 @@ pub mod demo;
 pub mod env;
 pub mod frames;
 pub mod gait;
+pub mod mujoco_env;
+pub mod observe;
 pub mod peer;
 pub mod plot;
 pub mod reference;

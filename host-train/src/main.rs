@@ -24,6 +24,8 @@ enum Command {
     Play(cli::play::PlayArgs),
     /// Evaluate a checkpoint: tracking error, fall rate, tripod score.
     Eval(cli::eval::EvalArgs),
+    /// Run a checkpoint in MuJoCo beside the simulator (nominal model): eval's table for both.
+    Sim2sim(cli::sim2sim::Sim2SimArgs),
     /// Draw a run's or checkpoint's metrics.csv as the training plots.
     Plot(cli::plot::PlotArgs),
     /// Many trainings from one file (presets x variants x seeds), each evaluated by the
@@ -41,6 +43,7 @@ fn main() -> std::process::ExitCode {
         Command::Priors(args) => cli::priors::run(args),
         Command::Play(args) => cli::play::run(args),
         Command::Eval(args) => cli::eval::run(args),
+        Command::Sim2sim(args) => cli::sim2sim::run(args),
         Command::Plot(args) => cli::plot::run(args),
         Command::Sweep(args) => cli::sweep::run(args),
     };

@@ -4,6 +4,7 @@
 //! 20 s episode), for a checkpoint. `--suite paper` runs the paper's experiments instead,
 //! for one or several checkpoints ([`crate::cli::suite`]).
 
+use crate::algo::ppo::Ppo;
 use crate::checkpoint::load_for_inference;
 use crate::cli::play::set_command;
 use crate::cli::terrain_test::{terrain_test, TerrainTestResult};
@@ -14,6 +15,8 @@ use clap::Args;
 use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_STATE_DIM};
 use hexapod_core::obs::{CONTACT_FORCE_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_CONTACT_FORCES, PRIV_LIN_VEL};
 use hexapod_core::robot::{NUM_LEGS, TRIPOD_A_MASK, TRIPOD_B_MASK};
+use host_sim::mujoco_env::MujocoEnv;
+use host_sim::vec_env::{Observations, StepResult, VecEnv};
 use serde::Serialize;
 use std::path::PathBuf;
 
@@ -223,6 +226,147 @@ pub fn contact_mask(privileged: &[f32]) -> u8 {
     mask
 }
 
+/// An environment the tracking measurement drives: the trainer's [`VecEnv`]s, or the
+/// MuJoCo environment, whose steps can fail.
+pub trait TrackEnv {
+    /// Number of robots.
+    fn num_envs(&self) -> usize;
+    /// Resets all robots.
+    fn reset(&mut self) -> anyhow::Result<Observations>;
+    /// One policy step.
+    fn step(&mut self, actions: &[f32]) -> anyhow::Result<StepResult>;
+}
+
+impl TrackEnv for Box<dyn VecEnv> {
+    fn num_envs(&self) -> usize {
+        VecEnv::num_envs(self.as_ref())
+    }
+    fn reset(&mut self) -> anyhow::Result<Observations> {
+        Ok(VecEnv::reset(self.as_mut()))
+    }
+    fn step(&mut self, actions: &[f32]) -> anyhow::Result<StepResult> {
+        Ok(VecEnv::step(self.as_mut(), actions))
+    }
+}
+
+impl TrackEnv for MujocoEnv {
+    fn num_envs(&self) -> usize {
+        1
+    }
+    fn reset(&mut self) -> anyhow::Result<Observations> {
+        MujocoEnv::reset(self)
+    }
+    fn step(&mut self, actions: &[f32]) -> anyhow::Result<StepResult> {
+        MujocoEnv::step(self, actions)
+    }
+}
+
+/// The estimator's error against the true base velocity, summed over samples.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct EstimatorError {
+    sum_sq_m2_s2: f64,
+    samples: usize,
+}
+
+impl EstimatorError {
+    /// RMS error per velocity component, m/s (NaN without samples: no estimator).
+    pub fn rms_m_s(&self) -> f64 {
+        if self.samples > 0 {
+            (self.sum_sq_m2_s2 / self.samples as f64).sqrt()
+        } else {
+            f64::NAN
+        }
+    }
+}
+
+/// Runs every robot of `env` from a reset at `command` for `steps` policy steps with the
+/// deterministic policy and measures tracking, falls, the tripod score and feet down
+/// (after [`SETTLE_STEPS`]); adds the estimator's error to `estimator`.
+pub fn track_command(
+    env: &mut dyn TrackEnv,
+    ppo: &mut Ppo,
+    command: [f32; 3],
+    steps: usize,
+    estimator: &mut EstimatorError,
+) -> anyhow::Result<CommandResult> {
+    let n = env.num_envs();
+    let mut obs = env.reset()?;
+    let mut fell = vec![false; n];
+    let (mut lin_err, mut yaw_err, mut mean_v, mut samples) = (0.0f64, 0.0f64, [0.0f64; 3], 0usize);
+    let (mut tripod, mut contact_samples) = (0usize, 0usize);
+    let mut feet_down = [0usize; 7];
+    for step in 0..steps {
+        set_command(&mut obs.actor, command);
+        let act = ppo.act(&obs, true)?;
+        let res = env.step(&act.actions)?;
+        for i in 0..n {
+            let p = &obs.privileged[i * PRIVILEGED_DIM..(i + 1) * PRIVILEGED_DIM];
+            if step >= SETTLE_STEPS {
+                let v = [
+                    p[PRIV_LIN_VEL.start] / LIN_VEL_SCALE,
+                    p[PRIV_LIN_VEL.start + 1] / LIN_VEL_SCALE,
+                    obs.amp[i * AMP_STATE_DIM + AMP_BASE_ANG_VEL.start + 2],
+                ];
+                lin_err += (((v[0] - command[0]).powi(2) + (v[1] - command[1]).powi(2)) as f64).sqrt();
+                yaw_err += (v[2] - command[2]).abs() as f64;
+                for k in 0..3 {
+                    mean_v[k] += v[k] as f64;
+                }
+                samples += 1;
+                let mask = contact_mask(p);
+                tripod += usize::from(mask == TRIPOD_A_MASK || mask == TRIPOD_B_MASK);
+                feet_down[mask.count_ones() as usize] += 1;
+                contact_samples += 1;
+            }
+            if !act.estimate.is_empty() {
+                for k in 0..3 {
+                    let e = (act.estimate[i * 3 + k] - p[PRIV_LIN_VEL.start + k]) / LIN_VEL_SCALE;
+                    estimator.sum_sq_m2_s2 += (e * e) as f64;
+                    estimator.samples += 1;
+                }
+            }
+            if res.dones[i] && !res.time_outs[i] {
+                fell[i] = true;
+            }
+        }
+        obs = res.obs;
+    }
+    let s = samples.max(1) as f64;
+    let mean_velocity = [mean_v[0] / s, mean_v[1] / s, mean_v[2] / s];
+    Ok(CommandResult {
+        command,
+        lin_vel_error_m_s: lin_err / s,
+        yaw_rate_error_rad_s: yaw_err / s,
+        mean_velocity,
+        speed_error_pct: speed_error_pct(command, mean_velocity),
+        fall_rate: fell.iter().filter(|&&f| f).count() as f64 / n as f64,
+        tripod_score: tripod as f64 / contact_samples.max(1) as f64,
+        feet_down_fraction: feet_down.map(|k| k as f64 / contact_samples.max(1) as f64),
+    })
+}
+
+/// The header of the per-command table.
+pub fn table_header() -> String {
+    format!(
+        "{:>22} {:>12} {:>12} {:>24} {:>10} {:>10} {:>10}",
+        "command (vx,vy,wz)", "lin err m/s", "yaw err r/s", "mean (vx,vy,wz)", "speed err", "fall rate", "tripod"
+    )
+}
+
+/// One command's row of the table.
+pub fn table_row(r: &CommandResult) -> String {
+    format!(
+        "{:>22} {:>12.3} {:>12.3} {:>24} {:>9.0}% {:>10.2} {:>10.2}",
+        format!("({:.1},{:.1},{:.1})", r.command[0], r.command[1], r.command[2]),
+        r.lin_vel_error_m_s,
+        r.yaw_rate_error_rad_s,
+        format!("({:+.2},{:+.2},{:+.2})", r.mean_velocity[0], r.mean_velocity[1], r.mean_velocity[2]),
+        r.speed_error_pct,
+        r.fall_rate,
+        r.tripod_score
+    )
+}
+
 /// Runs `hexapod eval`.
 pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     if let Some(suite) = &args.suite {
@@ -258,61 +402,9 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let mut env = make_env(&cfg)?;
     let n = args.num_envs;
     let mut results = Vec::new();
-    let (mut est_sq, mut est_n) = (0.0f64, 0usize);
+    let mut estimator = EstimatorError::default();
     for command in EVAL_COMMANDS {
-        let mut obs = env.reset();
-        let mut fell = vec![false; n];
-        let (mut lin_err, mut yaw_err, mut mean_v, mut samples) = (0.0f64, 0.0f64, [0.0f64; 3], 0usize);
-        let (mut tripod, mut contact_samples) = (0usize, 0usize);
-        let mut feet_down = [0usize; 7];
-        for step in 0..args.steps {
-            set_command(&mut obs.actor, command);
-            let act = ppo.act(&obs, true)?;
-            let res = env.step(&act.actions);
-            for i in 0..n {
-                let p = &obs.privileged[i * PRIVILEGED_DIM..(i + 1) * PRIVILEGED_DIM];
-                if step >= SETTLE_STEPS {
-                    let v = [
-                        p[PRIV_LIN_VEL.start] / LIN_VEL_SCALE,
-                        p[PRIV_LIN_VEL.start + 1] / LIN_VEL_SCALE,
-                        obs.amp[i * AMP_STATE_DIM + AMP_BASE_ANG_VEL.start + 2],
-                    ];
-                    lin_err += (((v[0] - command[0]).powi(2) + (v[1] - command[1]).powi(2)) as f64).sqrt();
-                    yaw_err += (v[2] - command[2]).abs() as f64;
-                    for k in 0..3 {
-                        mean_v[k] += v[k] as f64;
-                    }
-                    samples += 1;
-                    let mask = contact_mask(p);
-                    tripod += usize::from(mask == TRIPOD_A_MASK || mask == TRIPOD_B_MASK);
-                    feet_down[mask.count_ones() as usize] += 1;
-                    contact_samples += 1;
-                }
-                if !act.estimate.is_empty() {
-                    for k in 0..3 {
-                        let e = (act.estimate[i * 3 + k] - p[PRIV_LIN_VEL.start + k]) / LIN_VEL_SCALE;
-                        est_sq += (e * e) as f64;
-                        est_n += 1;
-                    }
-                }
-                if res.dones[i] && !res.time_outs[i] {
-                    fell[i] = true;
-                }
-            }
-            obs = res.obs;
-        }
-        let s = samples.max(1) as f64;
-        let mean_velocity = [mean_v[0] / s, mean_v[1] / s, mean_v[2] / s];
-        results.push(CommandResult {
-            command,
-            lin_vel_error_m_s: lin_err / s,
-            yaw_rate_error_rad_s: yaw_err / s,
-            mean_velocity,
-            speed_error_pct: speed_error_pct(command, mean_velocity),
-            fall_rate: fell.iter().filter(|&&f| f).count() as f64 / n as f64,
-            tripod_score: tripod as f64 / contact_samples.max(1) as f64,
-            feet_down_fraction: feet_down.map(|k| k as f64 / contact_samples.max(1) as f64),
-        });
+        results.push(track_command(&mut env, &mut ppo, command, args.steps, &mut estimator)?);
     }
     let m = results.len() as f64;
     let push = if cfg.env.kind == EnvKind::Sim { Some(push_test(&cfg, &mut ppo, n)?) } else { None };
@@ -332,24 +424,12 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         mean_lin_vel_error_m_s: results.iter().map(|r| r.lin_vel_error_m_s).sum::<f64>() / m,
         mean_fall_rate: results.iter().map(|r| r.fall_rate).sum::<f64>() / m,
         mean_tripod_score: results.iter().map(|r| r.tripod_score).sum::<f64>() / m,
-        estimator_error_m_s: if est_n > 0 { (est_sq / est_n as f64).sqrt() } else { f64::NAN },
+        estimator_error_m_s: estimator.rms_m_s(),
         commands: results,
     };
-    println!(
-        "{:>22} {:>12} {:>12} {:>24} {:>10} {:>10} {:>10}",
-        "command (vx,vy,wz)", "lin err m/s", "yaw err r/s", "mean (vx,vy,wz)", "speed err", "fall rate", "tripod"
-    );
+    println!("{}", table_header());
     for r in &report.commands {
-        println!(
-            "{:>22} {:>12.3} {:>12.3} {:>24} {:>9.0}% {:>10.2} {:>10.2}",
-            format!("({:.1},{:.1},{:.1})", r.command[0], r.command[1], r.command[2]),
-            r.lin_vel_error_m_s,
-            r.yaw_rate_error_rad_s,
-            format!("({:+.2},{:+.2},{:+.2})", r.mean_velocity[0], r.mean_velocity[1], r.mean_velocity[2]),
-            r.speed_error_pct,
-            r.fall_rate,
-            r.tripod_score
-        );
+        println!("{}", table_row(r));
     }
     if let Some(p) = &report.push_test {
         println!(

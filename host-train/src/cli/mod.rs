@@ -6,6 +6,7 @@ pub mod plot;
 pub mod pretrain;
 pub mod priors;
 pub mod replay;
+pub mod sim2sim;
 pub mod suite;
 pub mod sweep;
 pub mod terrain_test;

@@ -9,7 +9,6 @@ use crate::amp::discriminator::Discriminator;
 use crate::amp::prior_source::MotionPriorSource;
 use crate::amp::replay::ReplayBuffer;
 use crate::config::{LrSchedule, TrainConfig};
-use crate::error::TrainError;
 use crate::nn::actor_critic::{ActorCritic, CriticInput};
 use candle_core::{DType, Device, Result, Tensor};
 use candle_nn::VarMap;
@@ -21,6 +20,30 @@ use host_sim::vec_env::Observations;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
+
+/// Why the learner could not be built or updated.
+#[derive(Debug, thiserror::Error)]
+pub enum PpoError {
+    /// A tensor operation failed.
+    #[error("tensor error: {0}")]
+    Candle(#[from] candle_core::Error),
+    /// A loss became NaN or infinite; training stopped before applying it.
+    #[error("non-finite {what} at iteration {iteration} (surrogate {surrogate}, value {value}, estimator {estimator}, discriminator {discriminator}); the weights were not updated with it")]
+    NonFiniteLoss {
+        /// Which loss.
+        what: &'static str,
+        /// Iteration.
+        iteration: usize,
+        /// Surrogate loss value.
+        surrogate: f32,
+        /// Value loss value.
+        value: f32,
+        /// Estimator loss value.
+        estimator: f32,
+        /// Discriminator loss value.
+        discriminator: f32,
+    },
+}
 
 /// What the policy does for one batch of observations.
 pub struct ActOutput {
@@ -223,7 +246,7 @@ fn tensor(data: Vec<f32>, cols: usize, device: &Device) -> Result<Tensor> {
 
 impl Ppo {
     /// Builds networks and optimizers from a config.
-    pub fn new(cfg: &TrainConfig) -> std::result::Result<Self, TrainError> {
+    pub fn new(cfg: &TrainConfig) -> std::result::Result<Self, PpoError> {
         let device = Device::Cpu;
         let (params, stats, disc_params) = (VarMap::new(), VarMap::new(), VarMap::new());
         let ac = ActorCritic::new(&cfg.policy, &params, &stats, DType::F32, &device)?;
@@ -321,7 +344,7 @@ impl Ppo {
         storage: &RolloutStorage,
         priors: Option<&mut dyn MotionPriorSource>,
         iteration: usize,
-    ) -> std::result::Result<UpdateStats, TrainError> {
+    ) -> std::result::Result<UpdateStats, PpoError> {
         let p = self.cfg.ppo.clone();
         let old_log_std = self.ac.log_std.detach().copy()?;
         let mut priors = priors;
@@ -384,7 +407,7 @@ impl Ppo {
         old_log_std: &Tensor,
         amp: Option<&AmpBatch>,
         iteration: usize,
-    ) -> std::result::Result<UpdateStats, TrainError> {
+    ) -> std::result::Result<UpdateStats, PpoError> {
         let p = &self.cfg.ppo;
         let out = self.ac.policy(&mb.actor, &mb.history)?;
         let kl = gaussian_kl(&mb.old_mean, old_log_std, &out.mean, &self.ac.log_std)?;
@@ -434,7 +457,7 @@ impl Ppo {
         st.value = vloss.to_scalar::<f32>()?;
         st.entropy = entropy.to_scalar::<f32>()?;
         if !loss_v.is_finite() {
-            return Err(TrainError::NonFiniteLoss {
+            return Err(PpoError::NonFiniteLoss {
                 what: "total loss",
                 iteration,
                 surrogate: st.surrogate,

@@ -6,7 +6,7 @@
 
 use crate::checkpoint::load_for_inference;
 use crate::cli::play::set_command;
-use crate::cli::terrain_test::{terrain_test, TerrainTestResult};
+use crate::cli::terrain_walk::{terrain_walk, TerrainWalkResult};
 use crate::config::EnvKind;
 use crate::env::make_env;
 use anyhow::Context;
@@ -139,7 +139,7 @@ pub struct EvalReport {
     /// The push test (simulator only).
     pub push_test: Option<PushTestResult>,
     /// The terrain test (simulator only; policies trained on tiles, or on request).
-    pub terrain_test: Option<TerrainTestResult>,
+    pub terrain_test: Option<TerrainWalkResult>,
 }
 
 /// Speed change of the push test's pushes, m/s.
@@ -318,7 +318,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let push = if cfg.env.kind == EnvKind::Sim { Some(push_test(&cfg, &mut ppo, n)?) } else { None };
     let on_tiles = cfg.resolved_sim().terrain.tiles;
     let terrain = if cfg.env.kind == EnvKind::Sim && (args.terrain || on_tiles) {
-        Some(terrain_test(&cfg, &mut ppo, args.terrain_robots)?)
+        Some(terrain_walk(&cfg, &mut ppo, args.terrain_robots)?)
     } else {
         None
     };
@@ -358,7 +358,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         );
     }
     if let Some(t) = &report.terrain_test {
-        crate::cli::terrain_test::print(t);
+        crate::cli::terrain_walk::print(t);
     }
     println!(
         "mean: lin err {:.3} m/s, fall rate {:.2}, tripod score {:.2}, estimator error {:.3} m/s",

@@ -3,7 +3,7 @@
 //! ground or on one tile of the terrain grid (`--tile StairsUp --level 5`).
 
 use crate::checkpoint::load_for_inference;
-use crate::cli::replay::{render_replay, ReplayFrame};
+use crate::cli::replay_gif::{render_replay, ReplayFrame};
 use crate::cli::eval::{contact_mask, SETTLE_STEPS};
 use crate::config::EnvKind;
 use crate::env::make_env;

@@ -39,7 +39,7 @@ pub struct TileResult {
 
 /// The terrain test's results.
 #[derive(Debug, Serialize)]
-pub struct TerrainTestResult {
+pub struct TerrainWalkResult {
     /// Command (vx, vy, wz).
     pub command: [f32; 3],
     /// Length of each run, s.
@@ -62,7 +62,7 @@ pub fn test_levels(rows: usize) -> Vec<usize> {
 
 /// Runs the terrain test with `per_kind` robots on each tile kind. A checkpoint trained on
 /// flat ground is tested on the default tile grid.
-pub fn terrain_test(cfg: &TrainConfig, ppo: &mut Ppo, per_kind: usize) -> anyhow::Result<TerrainTestResult> {
+pub fn terrain_walk(cfg: &TrainConfig, ppo: &mut Ppo, per_kind: usize) -> anyhow::Result<TerrainWalkResult> {
     let mut sim = cfg.resolved_sim();
     if !sim.terrain.tiles {
         sim.terrain = TerrainConfig { tiles: true, ..TerrainConfig::default() };
@@ -115,7 +115,7 @@ pub fn terrain_test(cfg: &TrainConfig, ppo: &mut Ppo, per_kind: usize) -> anyhow
         }
     }
     let fall_rate = tiles.iter().map(|t| t.fall_rate).sum::<f64>() / tiles.len().max(1) as f64;
-    Ok(TerrainTestResult {
+    Ok(TerrainWalkResult {
         command: TERRAIN_TEST_COMMAND,
         duration_s: TERRAIN_TEST_DURATION_S,
         commanded_distance_m: TERRAIN_TEST_COMMAND[0].hypot(TERRAIN_TEST_COMMAND[1]) * TERRAIN_TEST_DURATION_S,
@@ -125,7 +125,7 @@ pub fn terrain_test(cfg: &TrainConfig, ppo: &mut Ppo, per_kind: usize) -> anyhow
 }
 
 /// Prints the terrain test as a table.
-pub fn print(t: &TerrainTestResult) {
+pub fn print(t: &TerrainWalkResult) {
     println!(
         "terrain test: ({:.1},{:.1},{:.1}) for {:.0} s ({:.1} m commanded), random headings",
         t.command[0], t.command[1], t.command[2], t.duration_s, t.commanded_distance_m

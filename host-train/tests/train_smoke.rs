@@ -81,6 +81,9 @@ impl VecEnv for PoisonedEnv {
     fn reset(&mut self) -> Observations {
         self.inner.reset()
     }
+    fn set_command(&mut self, i: usize, command: [f32; 3]) {
+        self.inner.set_command(i, command);
+    }
     fn step(&mut self, actions: &[f32]) -> StepResult {
         let mut r = self.inner.step(actions);
         self.steps += 1;

@@ -5,7 +5,6 @@
 //! for one or several checkpoints ([`crate::cli::suite`]).
 
 use crate::checkpoint::load_for_inference;
-use crate::cli::play::set_command;
 use crate::cli::terrain_walk::{terrain_walk, TerrainWalkResult};
 use crate::config::EnvKind;
 use crate::env::make_env;
@@ -178,6 +177,9 @@ fn push_test(cfg: &crate::config::TrainConfig, ppo: &mut crate::algo::ppo::Ppo, 
     let dt = hexapod_core::timing::POLICY_DT_S;
     let steps = (PUSH_TEST_DURATION_S / dt).round() as usize;
     let every = (PUSH_TEST_INTERVAL_S / dt).round() as usize;
+    for i in 0..n {
+        env.set_command(i, PUSH_TEST_COMMAND);
+    }
     let mut obs = env.reset();
     let (mut fell, mut pushes, mut vx, mut samples) = (vec![false; n], 0usize, 0.0f64, 0usize);
     for step in 0..steps {
@@ -188,7 +190,6 @@ fn push_test(cfg: &crate::config::TrainConfig, ppo: &mut crate::algo::ppo::Ppo, 
             }
             pushes += 1;
         }
-        set_command(&mut obs.actor, PUSH_TEST_COMMAND);
         let act = ppo.act(&obs, true)?;
         let res = env.step(&act.actions);
         for i in 0..n {
@@ -260,13 +261,15 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let mut results = Vec::new();
     let (mut est_sq, mut est_n) = (0.0f64, 0usize);
     for command in EVAL_COMMANDS {
+        for i in 0..n {
+            env.set_command(i, command);
+        }
         let mut obs = env.reset();
         let mut fell = vec![false; n];
         let (mut lin_err, mut yaw_err, mut mean_v, mut samples) = (0.0f64, 0.0f64, [0.0f64; 3], 0usize);
         let (mut tripod, mut contact_samples) = (0usize, 0usize);
         let mut feet_down = [0usize; 7];
         for step in 0..args.steps {
-            set_command(&mut obs.actor, command);
             let act = ppo.act(&obs, true)?;
             let res = env.step(&act.actions);
             for i in 0..n {

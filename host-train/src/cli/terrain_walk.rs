@@ -6,7 +6,6 @@
 //! every heading climbs (or descends) the feature, as in legged_gym.
 
 use crate::algo::ppo::Ppo;
-use crate::cli::play::set_command;
 use crate::config::TrainConfig;
 use host_sim::terrain::TerrainConfig;
 use host_sim::vec_env::VecEnv;
@@ -79,12 +78,12 @@ pub fn terrain_walk(cfg: &TrainConfig, ppo: &mut Ppo, per_kind: usize) -> anyhow
     for level in test_levels(sim.terrain.rows) {
         for i in 0..n {
             env.set_terrain_tile(i, level, i % kinds.len());
+            env.set_command(i, TERRAIN_TEST_COMMAND);
         }
         let mut obs = env.reset();
         let mut fell = vec![false; n];
         let mut distance_m = vec![0.0f32; n];
         for _ in 0..steps {
-            set_command(&mut obs.actor, TERRAIN_TEST_COMMAND);
             let act = ppo.act(&obs, true)?;
             let res = env.step(&act.actions);
             for i in 0..n {

@@ -45,6 +45,8 @@ pub struct PointMassEnv {
     task_reward: bool,
     penalties: bool,
     rng: ChaCha8Rng,
+    /// Commands set by [`VecEnv::set_command`], kept instead of the random ones.
+    fixed_commands: Vec<Option<[f32; 3]>>,
 }
 
 impl PointMassEnv {
@@ -52,7 +54,7 @@ impl PointMassEnv {
     pub fn new(num_envs: usize, episode_steps: usize, task_reward: bool, penalties: bool, seed: u64) -> Self {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let robots = (0..num_envs).map(|_| Self::fresh(&mut rng)).collect();
-        Self { robots, episode_steps, task_reward, penalties, rng }
+        Self { robots, episode_steps, task_reward, penalties, rng, fixed_commands: vec![None; num_envs] }
     }
 
     fn fresh(rng: &mut ChaCha8Rng) -> Robot {
@@ -119,9 +121,17 @@ impl VecEnv for PointMassEnv {
         self.robots.len()
     }
 
+    fn set_command(&mut self, i: usize, command: [f32; 3]) {
+        self.fixed_commands[i] = Some(command);
+        self.robots[i].command = command;
+    }
+
     fn reset(&mut self) -> Observations {
         for i in 0..self.robots.len() {
             self.robots[i] = Self::fresh(&mut self.rng);
+            if let Some(c) = self.fixed_commands[i] {
+                self.robots[i].command = c;
+            }
             let o = Self::observe_proprio(&mut self.robots[i], &mut self.rng);
             self.robots[i].history = ProprioHistory::filled_with(&o);
         }
@@ -178,6 +188,9 @@ impl VecEnv for PointMassEnv {
                 sum_task += r.sum_task / r.steps as f32;
                 sum_pen += r.sum_penalty / r.steps as f32;
                 *r = Self::fresh(&mut self.rng);
+                if let Some(c) = self.fixed_commands[i] {
+                    r.command = c;
+                }
                 let o = Self::observe_proprio(r, &mut self.rng);
                 r.history = ProprioHistory::filled_with(&o);
             } else {

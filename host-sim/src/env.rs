@@ -14,11 +14,9 @@ use crate::vec_env::{Observations, StepResult, VecEnv};
 use hexapod_core::amp::{amp_state, AMP_STATE_DIM};
 use hexapod_core::control::action_to_targets;
 use hexapod_core::obs::{
-    actor_obs, height_scan_point_m, proprio_noise_scale, proprio_obs, ProprioHistory,
-    ACTION_CLIP, ACTOR_OBS_DIM, CONTACT_FORCE_SCALE, HEIGHT_SCALE, HEIGHT_SCAN_DIM,
-    HEIGHT_SCAN_OFFSET_M, HISTORY_DIM, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_BASE_HEIGHT,
-    PRIV_COLLISIONS, PRIV_CONTACT_FORCES, PRIV_FRICTION, PRIV_LIN_VEL, PRIV_PERTURBATION,
-    PROPRIO_DIM,
+    actor_obs, height_scan_point_m, proprio_noise_scale, proprio_obs, PrivilegedState, ProprioHistory,
+    ACTION_CLIP, ACTOR_OBS_DIM, HEIGHT_SCALE, HEIGHT_SCAN_DIM, HEIGHT_SCAN_OFFSET_M, HISTORY_DIM,
+    PRIVILEGED_DIM, PROPRIO_DIM,
 };
 use hexapod_core::kinematics::foot_position_base;
 use hexapod_core::robot::{
@@ -558,30 +556,17 @@ impl Slot {
         let ang_vel = rotate_inverse(s.base_quat_xyzw, s.base_ang_vel_world_rad_s);
         let height = self.base_height_m();
         self.actor = actor_obs(self.command, &self.prev_action, &proprio);
-        // Privileged state.
-        let p = &mut self.privileged;
-        for k in 0..3 {
-            p[PRIV_LIN_VEL.start + k] = lin_vel[k] * LIN_VEL_SCALE;
+        self.privileged = PrivilegedState {
+            lin_vel_base_m_s: lin_vel,
+            base_height_m: height,
+            friction: self.friction,
+            foot_force_world_n: self.contacts.foot_force_world_n,
+            push_world_m_s: self.last_push_m_s,
+            trunk_collision: self.contacts.trunk,
+            thigh_collisions: self.contacts.thighs,
+            shank_collisions: self.contacts.shanks,
         }
-        p[PRIV_BASE_HEIGHT] = height;
-        p[PRIV_FRICTION] = self.friction;
-        for leg in 0..NUM_LEGS {
-            for k in 0..3 {
-                p[PRIV_CONTACT_FORCES.start + 3 * leg + k] =
-                    self.contacts.foot_force_world_n[leg][k] * CONTACT_FORCE_SCALE;
-            }
-        }
-        let push = self.last_push_m_s;
-        let norm = (push[0] * push[0] + push[1] * push[1] + push[2] * push[2]).sqrt();
-        for k in 0..3 {
-            p[PRIV_PERTURBATION.start + k] = push[k];
-            p[PRIV_PERTURBATION.start + 3 + k] = if norm > 1e-6 { push[k] / norm } else { 0.0 };
-        }
-        p[PRIV_COLLISIONS.start] = self.contacts.trunk as u8 as f32;
-        for leg in 0..NUM_LEGS {
-            p[PRIV_COLLISIONS.start + 1 + leg] = self.contacts.thighs[leg] as u8 as f32;
-            p[PRIV_COLLISIONS.start + 7 + leg] = self.contacts.shanks[leg] as u8 as f32;
-        }
+        .to_obs();
         // Height scan in the yaw-aligned frame.
         let yaw = yaw_rad(s.base_quat_xyzw);
         let (sin, cos) = yaw.sin_cos();

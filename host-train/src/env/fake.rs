@@ -11,8 +11,8 @@
 use hexapod_core::amp::{amp_state, AMP_STATE_DIM};
 use hexapod_core::nets::ACTOR_OUT;
 use hexapod_core::obs::{
-    actor_obs, proprio_noise_scale, proprio_obs, ProprioHistory, ACTOR_OBS_DIM, HEIGHT_SCAN_DIM,
-    HISTORY_DIM, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_BASE_HEIGHT, PRIV_FRICTION, PRIV_LIN_VEL,
+    actor_obs, proprio_noise_scale, proprio_obs, PrivilegedState, ProprioHistory, ACTOR_OBS_DIM, HEIGHT_SCAN_DIM,
+    HISTORY_DIM, PRIVILEGED_DIM,
     PROPRIO_DIM,
 };
 use hexapod_core::robot::{NUM_JOINTS, Q0_RAD};
@@ -104,12 +104,13 @@ impl PointMassEnv {
         for r in &self.robots {
             obs.actor.extend_from_slice(&actor_obs(r.command, &r.prev_action, r.history.newest()));
             obs.history.extend_from_slice(&r.history.flatten());
-            let mut p = [0.0f32; PRIVILEGED_DIM];
-            p[PRIV_LIN_VEL.start] = r.vel[0] * LIN_VEL_SCALE;
-            p[PRIV_LIN_VEL.start + 1] = r.vel[1] * LIN_VEL_SCALE;
-            p[PRIV_BASE_HEIGHT] = HEIGHT_M;
-            p[PRIV_FRICTION] = 1.0;
-            obs.privileged.extend_from_slice(&p);
+            let p = PrivilegedState {
+                lin_vel_base_m_s: [r.vel[0], r.vel[1], 0.0],
+                base_height_m: HEIGHT_M,
+                friction: 1.0,
+                ..Default::default()
+            };
+            obs.privileged.extend_from_slice(&p.to_obs());
             obs.amp.extend_from_slice(&Self::amp(r));
         }
         obs

@@ -592,7 +592,7 @@ mod tests {
     use super::*;
     use crate::terrain::{Terrain, TerrainConfig};
     use crate::urdf_model::{default_urdf_path, UrdfModel};
-    use hexapod_core::robot::{Q0_RAD, TOTAL_MASS_KG};
+    use hexapod_core::robot::{NOMINAL_BASE_HEIGHT_M, Q0_RAD, TOTAL_MASS_KG};
 
     fn flat_robot() -> RobotWorld {
         let model = UrdfModel::load(&default_urdf_path()).unwrap();
@@ -637,7 +637,7 @@ mod tests {
     #[test]
     fn collision_flags_follow_the_link_shapes() {
         let mut r = flat_robot();
-        r.reset([0.0, 0.0, 0.31], [0.0, 0.0, 0.0, 1.0], &Q0_RAD);
+        r.reset([0.0, 0.0, NOMINAL_BASE_HEIGHT_M], [0.0, 0.0, 0.0, 1.0], &Q0_RAD);
         let c = r.contacts();
         assert!(!c.trunk && !c.thighs.iter().any(|t| *t) && !c.shanks.iter().any(|s| *s), "{c:?}");
         // Legs stretched out flat with the base low: thighs and shanks lie on the ground.
@@ -712,7 +712,7 @@ mod tests {
         }
         let s = r.state();
         let height = s.base_pos_world_m[2];
-        assert!((height - 0.30).abs() < 0.02, "height {height}");
+        assert!((height - NOMINAL_BASE_HEIGHT_M).abs() < 0.02, "height {height}");
         for j in 0..NUM_JOINTS {
             assert!((s.q_rad[j] - Q0_RAD[j]).abs() < 0.05, "joint {j} drifted: {}", s.q_rad[j]);
         }

@@ -24,7 +24,7 @@ use rand_chacha::ChaCha8Rng;
 /// Body velocity per rad of mean joint offset.
 const VEL_GAIN: f32 = 4.0;
 /// Standing height reported in the privileged and AMP states, m.
-const HEIGHT_M: f32 = 0.31;
+const HEIGHT_M: f32 = hexapod_core::robot::NOMINAL_BASE_HEIGHT_M;
 
 struct Robot {
     q_off: [f32; NUM_JOINTS],

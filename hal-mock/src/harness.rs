@@ -12,6 +12,7 @@ use hexapod_core::hal::BootInfo;
 use hexapod_core::supervisor::Command;
 use hexapod_core::timing::{PHYSICS_DT_S, POLICY_DT_S};
 
+use crate::base::BaseState;
 use crate::imu::{ImuModel, ImuNoise};
 use crate::plant::JointPlant;
 use crate::rc::RcSource;
@@ -21,27 +22,6 @@ use crate::rig::DriveRig;
 pub const TICK_US: u64 = 1_000;
 const PHYSICS_US: u64 = (PHYSICS_DT_S * 1e6) as u64;
 const CYCLE_US: u64 = (POLICY_DT_S * 1e6) as u64;
-
-/// The base's motion as the IMU senses it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct BaseState {
-    /// Orientation, unit quaternion (w, x, y, z), base -> world.
-    pub orientation: [f32; 4],
-    /// Angular velocity, base frame, rad/s.
-    pub ang_vel_base_rad_s: [f32; 3],
-    /// Linear acceleration, world frame, m/s^2.
-    pub lin_acc_world_m_s2: [f32; 3],
-}
-
-impl Default for BaseState {
-    fn default() -> Self {
-        Self {
-            orientation: [1.0, 0.0, 0.0, 0.0],
-            ang_vel_base_rad_s: [0.0; 3],
-            lin_acc_world_m_s2: [0.0; 3],
-        }
-    }
-}
 
 /// Everything of one SIL run.
 pub struct Harness<P: JointPlant> {

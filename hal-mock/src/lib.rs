@@ -10,8 +10,10 @@
 //! - [`rc::RcSource`]: a CRSF receiver stream, with link loss;
 //! - [`clock::MockClock`]: a settable clock;
 //! - [`candump`]: traffic logs in the candump format;
+//! - [`base::BaseState`]: the base's motion the IMU senses;
 //! - [`harness::Harness`]: controller core + rig + sensors + plant in 1 ms steps.
 
+pub mod base;
 pub mod bus;
 pub mod candump;
 pub mod clock;

@@ -7,6 +7,8 @@
 use hexapod_core::robot::{ARMATURE_KG_M2, NUM_JOINTS, Q_SIT_RAD};
 use hexapod_core::timing::{csp_torque_nm, CSP_KP1_PER_S, CSP_KP2_NMS_PER_RAD};
 
+use crate::base::BaseState;
+
 /// What an enabled drive asks of its joint: the CSP target and the drive's limits.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CspSetpoint {
@@ -38,7 +40,7 @@ pub trait JointPlant {
     /// The base's motion when the plant simulates it (rigid-body physics); the harness then
     /// feeds it to the IMU model at every tick. `None` (the default): the harness keeps
     /// [`crate::harness::Harness::base`] as the caller sets it.
-    fn base_state(&self) -> Option<crate::harness::BaseState> {
+    fn base_state(&self) -> Option<BaseState> {
         None
     }
 }

@@ -75,6 +75,8 @@ struct Slot {
     references: Arc<[ReferenceState]>,
     command_progress: CommandProgress,
     command: [f32; 3],
+    /// The command set by [`VecEnv::set_command`], kept instead of resampling.
+    fixed_command: Option<[f32; 3]>,
     action: [f32; NUM_JOINTS],
     prev_action: [f32; NUM_JOINTS],
     prev_targets: [f32; NUM_JOINTS],
@@ -158,6 +160,7 @@ impl HexapodEnv {
                     references: Arc::from(Vec::new()),
                     command_progress: CommandProgress::default(),
                     command: [0.0; 3],
+                    fixed_command: None,
                     action: [0.0; NUM_JOINTS],
                     prev_action: [0.0; NUM_JOINTS],
                     prev_targets: Q0_RAD,
@@ -208,11 +211,6 @@ impl HexapodEnv {
     /// Command of robot `i`.
     pub fn command(&self, i: usize) -> [f32; 3] {
         self.slots[i].command
-    }
-
-    /// Overrides the command of robot `i` (evaluation, play); observations follow at the next step.
-    pub fn set_command(&mut self, i: usize, command: [f32; 3]) {
-        self.slots[i].command = command;
     }
 
     /// Terrain level (row) of robot `i`.
@@ -311,6 +309,12 @@ impl VecEnv for HexapodEnv {
 
     fn set_reference_states(&mut self, states: Arc<[ReferenceState]>) {
         HexapodEnv::set_reference_states(self, states);
+    }
+
+    fn set_command(&mut self, i: usize, command: [f32; 3]) {
+        let s = &mut self.slots[i];
+        s.fixed_command = Some(command);
+        s.command = command;
     }
 
     fn reset(&mut self) -> Observations {
@@ -415,9 +419,11 @@ fn uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f32; 2]) -> f32 {
 }
 
 impl Slot {
+    /// Draws a new command, or keeps the fixed one; the draw is made either way, so the
+    /// robot's other random draws do not depend on whether its command is fixed.
     fn sample_command(&mut self, config: &EnvConfig) {
         let c = &config.commands;
-        self.command = if self.rng.gen::<f32>() < c.zero_probability {
+        let drawn = if self.rng.gen::<f32>() < c.zero_probability {
             [0.0; 3]
         } else {
             [
@@ -426,6 +432,7 @@ impl Slot {
                 uniform(&mut self.rng, c.ang_vel_z_rad_s),
             ]
         };
+        self.command = self.fixed_command.unwrap_or(drawn);
     }
 
     fn update_curriculum(&mut self, config: &EnvConfig) {

@@ -5,12 +5,7 @@
 use crate::frames::rotate_inverse;
 use crate::robot::{ContactState, RobotState};
 use hexapod_core::amp::{amp_state, AMP_STATE_DIM};
-use hexapod_core::obs::{
-    proprio_obs, CONTACT_FORCE_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_BASE_HEIGHT,
-    PRIV_COLLISIONS, PRIV_CONTACT_FORCES, PRIV_FRICTION, PRIV_LIN_VEL, PRIV_PERTURBATION,
-    PROPRIO_DIM,
-};
-use hexapod_core::robot::NUM_LEGS;
+use hexapod_core::obs::{proprio_obs, PrivilegedState, PRIVILEGED_DIM, PROPRIO_DIM};
 
 /// Base linear velocity in the base frame, m/s.
 pub fn lin_vel_base_m_s(s: &RobotState) -> [f32; 3] {
@@ -49,29 +44,15 @@ pub fn privileged(
     contacts: &ContactState,
     push_m_s: [f32; 3],
 ) -> [f32; PRIVILEGED_DIM] {
-    let mut p = [0.0; PRIVILEGED_DIM];
-    let lin_vel = lin_vel_base_m_s(s);
-    for k in 0..3 {
-        p[PRIV_LIN_VEL.start + k] = lin_vel[k] * LIN_VEL_SCALE;
+    PrivilegedState {
+        lin_vel_base_m_s: lin_vel_base_m_s(s),
+        base_height_m,
+        friction,
+        foot_force_world_n: contacts.foot_force_world_n,
+        push_world_m_s: push_m_s,
+        trunk_collision: contacts.trunk,
+        thigh_collisions: contacts.thighs,
+        shank_collisions: contacts.shanks,
     }
-    p[PRIV_BASE_HEIGHT] = base_height_m;
-    p[PRIV_FRICTION] = friction;
-    for leg in 0..NUM_LEGS {
-        for k in 0..3 {
-            p[PRIV_CONTACT_FORCES.start + 3 * leg + k] =
-                contacts.foot_force_world_n[leg][k] * CONTACT_FORCE_SCALE;
-        }
-    }
-    let norm =
-        (push_m_s[0] * push_m_s[0] + push_m_s[1] * push_m_s[1] + push_m_s[2] * push_m_s[2]).sqrt();
-    for k in 0..3 {
-        p[PRIV_PERTURBATION.start + k] = push_m_s[k];
-        p[PRIV_PERTURBATION.start + 3 + k] = if norm > 1e-6 { push_m_s[k] / norm } else { 0.0 };
-    }
-    p[PRIV_COLLISIONS.start] = contacts.trunk as u8 as f32;
-    for leg in 0..NUM_LEGS {
-        p[PRIV_COLLISIONS.start + 1 + leg] = contacts.thighs[leg] as u8 as f32;
-        p[PRIV_COLLISIONS.start + 7 + leg] = contacts.shanks[leg] as u8 as f32;
-    }
-    p
+    .to_obs()
 }

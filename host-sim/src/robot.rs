@@ -13,7 +13,7 @@ use hexapod_core::robot::{
 };
 use hexapod_core::timing::{csp_torque_nm, CSP_KP1_PER_S, CSP_KP2_NMS_PER_RAD, PHYSICS_DT_S};
 use rapier3d::prelude::*;
-use rapier3d_urdf::{UrdfLoaderOptions, UrdfMultibodyOptions, UrdfRobot};
+use rapier3d_urdf::{UrdfLoaderOptions, UrdfMultibodyOptions, UrdfRobot, UrdfRobotHandles};
 
 /// Per-robot physical parameters that domain randomization changes.
 #[derive(Clone, Debug)]
@@ -126,140 +126,212 @@ pub enum BuildError {
     },
 }
 
+/// The URDF's colliders the simulator treats apart: trunk, feet, thighs, shanks.
+struct LinkColliders {
+    base: RigidBodyHandle,
+    trunk: ColliderHandle,
+    feet: [ColliderHandle; NUM_LEGS],
+    thighs: [ColliderHandle; NUM_LEGS],
+    shanks: [ColliderHandle; NUM_LEGS],
+}
+
+/// Each joint's bodies and axis, in joint order.
+struct JointBodies {
+    child_body: [RigidBodyHandle; NUM_JOINTS],
+    parent_body: [RigidBodyHandle; NUM_JOINTS],
+    axis_local: [Vector; NUM_JOINTS],
+}
+
+fn structure_error(model: &UrdfModel, message: String) -> BuildError {
+    BuildError::Structure { path: model.path.display().to_string(), message }
+}
+
+/// An empty world: gravity, the physics time step and the solver settings.
+fn physics_world(solver_iterations: usize) -> PhysicsWorld {
+    let mut world = PhysicsWorld::new();
+    world.gravity = Vector::new(0.0, 0.0, -9.81);
+    world.integration_parameters.dt = PHYSICS_DT_S;
+    world.integration_parameters.num_solver_iterations = solver_iterations;
+    // Speculative contacts within 1 cm (default 2 cm): a foot moves at most a few mm per
+    // 5 ms step, and the heightfield then yields fewer contact points (about 16 instead of 27).
+    world.integration_parameters.normalized_prediction_distance = 0.01;
+    world
+}
+
+/// Inserts the URDF's links and joints as one multibody without self-contacts.
+fn insert_urdf(world: &mut PhysicsWorld, model: &UrdfModel) -> UrdfRobotHandles<Option<MultibodyJointHandle>> {
+    let options = UrdfLoaderOptions {
+        enable_joint_collisions: false,
+        ..Default::default()
+    };
+    let urdf = UrdfRobot::from_robot(&model.robot, options, std::path::Path::new("."));
+    urdf.insert_using_multibody_joints(
+        &mut world.bodies,
+        &mut world.colliders,
+        &mut world.multibody_joints,
+        UrdfMultibodyOptions::DISABLE_SELF_CONTACTS,
+    )
+}
+
+/// Finds the base with its trunk shape and each leg's thigh, shank and foot shapes.
+fn find_link_colliders(
+    model: &UrdfModel,
+    world: &PhysicsWorld,
+    handles: &UrdfRobotHandles<Option<MultibodyJointHandle>>,
+) -> Result<LinkColliders, BuildError> {
+    let structure = |message: String| structure_error(model, message);
+    let link_index = |name: &str| model.robot.links.iter().position(|l| l.name == name);
+    let base_link = link_index("base").ok_or_else(|| structure("no link `base`".into()))?;
+    let base = handles.links[base_link].body;
+    let trunk = *handles.links[base_link]
+        .colliders
+        .first()
+        .map(|c| &c.handle)
+        .ok_or_else(|| structure("link `base` has no collision shape".into()))?;
+    let mut feet = [trunk; NUM_LEGS];
+    let mut thighs = [trunk; NUM_LEGS];
+    let mut shanks = [trunk; NUM_LEGS];
+    for leg in 0..NUM_LEGS {
+        let thigh_link = &handles.links[link_index(&format!("{}_thigh", hexapod_core::robot::LEG_NAMES[leg])).ok_or_else(|| structure(format!("no thigh link for leg {leg}")))?];
+        let shank_link = &handles.links[link_index(&format!("{}_shank", hexapod_core::robot::LEG_NAMES[leg])).ok_or_else(|| structure(format!("no shank link for leg {leg}")))?];
+        thighs[leg] = thigh_link.colliders.first().map(|c| c.handle).ok_or_else(|| structure(format!("leg {leg}: thigh has no collision shape")))?;
+        let mut foot = None;
+        let mut shank = None;
+        for c in &shank_link.colliders {
+            if world.colliders[c.handle].shape().as_ball().is_some() {
+                foot = Some(c.handle);
+            } else {
+                shank = Some(c.handle);
+            }
+        }
+        feet[leg] = foot.ok_or_else(|| structure(format!("leg {leg}: shank has no foot sphere")))?;
+        shanks[leg] = shank.ok_or_else(|| structure(format!("leg {leg}: shank has no cylinder")))?;
+    }
+    Ok(LinkColliders { base, trunk, feet, thighs, shanks })
+}
+
+/// Finds each joint of [`JOINT_NAMES`] in the URDF: its child and parent bodies and its axis.
+fn find_joint_bodies(
+    model: &UrdfModel,
+    handles: &UrdfRobotHandles<Option<MultibodyJointHandle>>,
+    base: RigidBodyHandle,
+) -> Result<JointBodies, BuildError> {
+    let mut bodies = JointBodies { child_body: [base; NUM_JOINTS], parent_body: [base; NUM_JOINTS], axis_local: [Vector::X; NUM_JOINTS] };
+    for (j, name) in JOINT_NAMES.iter().enumerate() {
+        let ji = model.robot.joints.iter().position(|jt| jt.name == *name).ok_or_else(|| structure_error(model, format!("no joint `{name}`")))?;
+        let h = &handles.joints[ji];
+        bodies.child_body[j] = h.link2;
+        bodies.parent_body[j] = h.link1;
+        let axis = &model.robot.joints[ji].axis.xyz;
+        bodies.axis_local[j] = Vector::new(axis[0] as f32, axis[1] as f32, axis[2] as f32);
+    }
+    Ok(bodies)
+}
+
+/// Feet and trunk stay solid; thigh and shank shapes leave the physics and become probes
+/// (trunk first, then thighs, then shanks). The trunk costs the solver nothing while it is
+/// clear of the ground, and it lets an unpowered robot rest on its belly.
+fn make_probes(model: &UrdfModel, world: &mut PhysicsWorld, links: &LinkColliders) -> Result<Vec<Probe>, BuildError> {
+    let structure = |message: String| structure_error(model, message);
+    let mut probes = Vec::with_capacity(1 + 2 * NUM_LEGS);
+    let trunk_collider = &world.colliders[links.trunk];
+    probes.push(Probe {
+        body: links.base,
+        local_pose: trunk_collider.position_wrt_parent().copied().unwrap_or(Pose::IDENTITY),
+        shape: trunk_collider.shared_shape().clone(),
+    });
+    for handle in links.thighs.into_iter().chain(links.shanks) {
+        let collider = world
+            .colliders
+            .remove(handle, &mut world.islands, &mut world.bodies, &mut world.soft_bodies, false)
+            .ok_or_else(|| structure("collision shape vanished".into()))?;
+        probes.push(Probe {
+            body: collider.parent().ok_or_else(|| structure("collision shape without a link".into()))?,
+            local_pose: collider.position_wrt_parent().copied().unwrap_or(Pose::IDENTITY),
+            shape: collider.shared_shape().clone(),
+        });
+    }
+    Ok(probes)
+}
+
+/// Friction and restitution of the solid shapes: trunk 0.8; feet 1.0, multiplied with the
+/// ground's, without bounce.
+fn set_contact_materials(world: &mut PhysicsWorld, links: &LinkColliders) {
+    world.colliders[links.trunk].set_friction(0.8);
+    for handle in links.feet {
+        let c = &mut world.colliders[handle];
+        c.set_friction(1.0);
+        c.set_friction_combine_rule(CoefficientCombineRule::Multiply);
+        c.set_restitution(0.0);
+    }
+}
+
+/// Maps joints to multibody links and generalized coordinates (returned in that order) and
+/// sets each joint's armature, no damping and no limit constraint.
+fn configure_joints(
+    model: &UrdfModel,
+    world: &mut PhysicsWorld,
+    base: RigidBodyHandle,
+    child_body: &[RigidBodyHandle; NUM_JOINTS],
+) -> Result<([usize; NUM_JOINTS], [usize; NUM_JOINTS]), BuildError> {
+    let structure = |message: String| structure_error(model, message);
+    let link_id = world.multibody_joints.rigid_body_link(base).ok_or_else(|| structure("base is not in a multibody".into()))?;
+    let mb_index = link_id.multibody;
+    let mut link_of_joint = [0; NUM_JOINTS];
+    let mut dof_of_joint = [0; NUM_JOINTS];
+    let mb = world.multibody_joints.get_multibody_mut(mb_index).ok_or_else(|| structure("no multibody".into()))?;
+    for j in 0..NUM_JOINTS {
+        let link = mb.links().position(|l| l.rigid_body_handle() == child_body[j]).ok_or_else(|| structure(format!("joint {} not in multibody", JOINT_NAMES[j])))?;
+        link_of_joint[j] = link;
+        dof_of_joint[j] = mb.link(link).map(|l| l.assembly_id()).unwrap_or(0);
+    }
+    for j in 0..NUM_JOINTS {
+        mb.armature_mut()[dof_of_joint[j]] = model.armature_kg_m2;
+        mb.damping_mut()[dof_of_joint[j]] = 0.0;
+        // Joint stops are modelled in `joint_stop_torque_nm` (explicit, only when
+        // beyond a limit): rapier's limit constraint would cost a mass-matrix solve per
+        // joint per step even far from the limit.
+        if let Some(link) = mb.link_mut(link_of_joint[j]) {
+            link.joint.data.limit_axes = JointAxesMask::empty();
+        }
+    }
+    Ok((link_of_joint, dof_of_joint))
+}
+
+/// Every link's body with its mass properties as the URDF's shapes give them (the nominal
+/// masses that domain randomization scales).
+fn nominal_masses(world: &mut PhysicsWorld, handles: &UrdfRobotHandles<Option<MultibodyJointHandle>>) -> (Vec<RigidBodyHandle>, Vec<MassProperties>) {
+    let link_bodies: Vec<RigidBodyHandle> = handles.links.iter().map(|l| l.body).collect();
+    let mut nominal_mass = Vec::with_capacity(link_bodies.len());
+    for h in &link_bodies {
+        let rb = &mut world.bodies[*h];
+        rb.recompute_mass_properties_from_colliders(&world.colliders);
+        nominal_mass.push(rb.mass_properties().local_mprops);
+    }
+    (link_bodies, nominal_mass)
+}
+
 impl RobotWorld {
     /// Builds a world with `ground` and the robot of `model`, standing at the nominal pose.
     pub fn new(model: &UrdfModel, ground: Collider, solver_iterations: usize) -> Result<Self, BuildError> {
-        let structure = |message: String| BuildError::Structure {
-            path: model.path.display().to_string(),
-            message,
-        };
-        let mut world = PhysicsWorld::new();
-        world.gravity = Vector::new(0.0, 0.0, -9.81);
-        world.integration_parameters.dt = PHYSICS_DT_S;
-        world.integration_parameters.num_solver_iterations = solver_iterations;
-        // Speculative contacts within 1 cm (default 2 cm): a foot moves at most a few mm per
-        // 5 ms step, and the heightfield then yields fewer contact points (about 16 instead of 27).
-        world.integration_parameters.normalized_prediction_distance = 0.01;
+        let mut world = physics_world(solver_iterations);
         let ground = world.colliders.insert(ground);
-
-        let options = UrdfLoaderOptions {
-            enable_joint_collisions: false,
-            ..Default::default()
-        };
-        let urdf = UrdfRobot::from_robot(&model.robot, options, std::path::Path::new("."));
-        let handles = urdf.insert_using_multibody_joints(
-            &mut world.bodies,
-            &mut world.colliders,
-            &mut world.multibody_joints,
-            UrdfMultibodyOptions::DISABLE_SELF_CONTACTS,
-        );
-        let link_index = |name: &str| model.robot.links.iter().position(|l| l.name == name);
-        let base_link = link_index("base").ok_or_else(|| structure("no link `base`".into()))?;
-        let base = handles.links[base_link].body;
-        let trunk = *handles.links[base_link]
-            .colliders
-            .first()
-            .map(|c| &c.handle)
-            .ok_or_else(|| structure("link `base` has no collision shape".into()))?;
-
-        let mut child_body = [base; NUM_JOINTS];
-        let mut parent_body = [base; NUM_JOINTS];
-        let mut axis_local = [Vector::X; NUM_JOINTS];
-        let mut feet = [trunk; NUM_LEGS];
-        let mut thighs = [trunk; NUM_LEGS];
-        let mut shanks = [trunk; NUM_LEGS];
-        for (j, name) in JOINT_NAMES.iter().enumerate() {
-            let ji = model.robot.joints.iter().position(|jt| jt.name == *name).ok_or_else(|| structure(format!("no joint `{name}`")))?;
-            let h = &handles.joints[ji];
-            child_body[j] = h.link2;
-            parent_body[j] = h.link1;
-            let axis = &model.robot.joints[ji].axis.xyz;
-            axis_local[j] = Vector::new(axis[0] as f32, axis[1] as f32, axis[2] as f32);
-        }
-        for leg in 0..NUM_LEGS {
-            let thigh_link = &handles.links[link_index(&format!("{}_thigh", hexapod_core::robot::LEG_NAMES[leg])).ok_or_else(|| structure(format!("no thigh link for leg {leg}")))?];
-            let shank_link = &handles.links[link_index(&format!("{}_shank", hexapod_core::robot::LEG_NAMES[leg])).ok_or_else(|| structure(format!("no shank link for leg {leg}")))?];
-            thighs[leg] = thigh_link.colliders.first().map(|c| c.handle).ok_or_else(|| structure(format!("leg {leg}: thigh has no collision shape")))?;
-            let mut foot = None;
-            let mut shank = None;
-            for c in &shank_link.colliders {
-                if world.colliders[c.handle].shape().as_ball().is_some() {
-                    foot = Some(c.handle);
-                } else {
-                    shank = Some(c.handle);
-                }
-            }
-            feet[leg] = foot.ok_or_else(|| structure(format!("leg {leg}: shank has no foot sphere")))?;
-            shanks[leg] = shank.ok_or_else(|| structure(format!("leg {leg}: shank has no cylinder")))?;
-        }
-        // Feet and trunk are solid; thigh and shank shapes become probes. The trunk costs the
-        // solver nothing while it is clear of the ground, and it lets an unpowered robot rest
-        // on its belly.
-        let mut probes = Vec::with_capacity(1 + 2 * NUM_LEGS);
-        let trunk_collider = &world.colliders[trunk];
-        probes.push(Probe {
-            body: base,
-            local_pose: trunk_collider.position_wrt_parent().copied().unwrap_or(Pose::IDENTITY),
-            shape: trunk_collider.shared_shape().clone(),
-        });
-        for handle in thighs.into_iter().chain(shanks) {
-            let collider = world
-                .colliders
-                .remove(handle, &mut world.islands, &mut world.bodies, &mut world.soft_bodies, false)
-                .ok_or_else(|| structure("collision shape vanished".into()))?;
-            probes.push(Probe {
-                body: collider.parent().ok_or_else(|| structure("collision shape without a link".into()))?,
-                local_pose: collider.position_wrt_parent().copied().unwrap_or(Pose::IDENTITY),
-                shape: collider.shared_shape().clone(),
-            });
-        }
-        world.colliders[trunk].set_friction(0.8);
-        for handle in feet {
-            let c = &mut world.colliders[handle];
-            c.set_friction(1.0);
-            c.set_friction_combine_rule(CoefficientCombineRule::Multiply);
-            c.set_restitution(0.0);
-        }
-
-        // Map joints to multibody links and generalized coordinates; set armature.
-        let link_id = world.multibody_joints.rigid_body_link(base).ok_or_else(|| structure("base is not in a multibody".into()))?;
-        let mb_index = link_id.multibody;
-        let mut link_of_joint = [0; NUM_JOINTS];
-        let mut dof_of_joint = [0; NUM_JOINTS];
-        {
-            let mb = world.multibody_joints.get_multibody_mut(mb_index).ok_or_else(|| structure("no multibody".into()))?;
-            for j in 0..NUM_JOINTS {
-                let link = mb.links().position(|l| l.rigid_body_handle() == child_body[j]).ok_or_else(|| structure(format!("joint {} not in multibody", JOINT_NAMES[j])))?;
-                link_of_joint[j] = link;
-                dof_of_joint[j] = mb.link(link).map(|l| l.assembly_id()).unwrap_or(0);
-            }
-            for j in 0..NUM_JOINTS {
-                mb.armature_mut()[dof_of_joint[j]] = model.armature_kg_m2;
-                mb.damping_mut()[dof_of_joint[j]] = 0.0;
-                // Joint stops are modelled in `joint_stop_torque_nm` (explicit, only when
-                // beyond a limit): rapier's limit constraint would cost a mass-matrix solve per
-                // joint per step even far from the limit.
-                if let Some(link) = mb.link_mut(link_of_joint[j]) {
-                    link.joint.data.limit_axes = JointAxesMask::empty();
-                }
-            }
-        }
-        let link_bodies: Vec<RigidBodyHandle> = handles.links.iter().map(|l| l.body).collect();
-        let mut nominal_mass = Vec::with_capacity(link_bodies.len());
-        for h in &link_bodies {
-            let rb = &mut world.bodies[*h];
-            rb.recompute_mass_properties_from_colliders(&world.colliders);
-            nominal_mass.push(rb.mass_properties().local_mprops);
-        }
+        let handles = insert_urdf(&mut world, model);
+        let links = find_link_colliders(model, &world, &handles)?;
+        let joints = find_joint_bodies(model, &handles, links.base)?;
+        let probes = make_probes(model, &mut world, &links)?;
+        set_contact_materials(&mut world, &links);
+        let (link_of_joint, dof_of_joint) = configure_joints(model, &mut world, links.base, &joints.child_body)?;
+        let (link_bodies, nominal_mass) = nominal_masses(&mut world, &handles);
         let mut robot = Self {
             world,
-            base,
+            base: links.base,
             link_of_joint,
             dof_of_joint,
-            child_body,
-            parent_body,
-            axis_local,
-            feet,
+            child_body: joints.child_body,
+            parent_body: joints.parent_body,
+            axis_local: joints.axis_local,
+            feet: links.feet,
             probes,
             ground,
             link_bodies,
@@ -520,7 +592,7 @@ mod tests {
     use super::*;
     use crate::terrain::{Terrain, TerrainConfig};
     use crate::urdf_model::{default_urdf_path, UrdfModel};
-    use hexapod_core::robot::{Q0_RAD, TOTAL_MASS_KG};
+    use hexapod_core::robot::{NOMINAL_BASE_HEIGHT_M, Q0_RAD, TOTAL_MASS_KG};
 
     fn flat_robot() -> RobotWorld {
         let model = UrdfModel::load(&default_urdf_path()).unwrap();
@@ -565,7 +637,7 @@ mod tests {
     #[test]
     fn collision_flags_follow_the_link_shapes() {
         let mut r = flat_robot();
-        r.reset([0.0, 0.0, 0.31], [0.0, 0.0, 0.0, 1.0], &Q0_RAD);
+        r.reset([0.0, 0.0, NOMINAL_BASE_HEIGHT_M], [0.0, 0.0, 0.0, 1.0], &Q0_RAD);
         let c = r.contacts();
         assert!(!c.trunk && !c.thighs.iter().any(|t| *t) && !c.shanks.iter().any(|s| *s), "{c:?}");
         // Legs stretched out flat with the base low: thighs and shanks lie on the ground.
@@ -640,7 +712,7 @@ mod tests {
         }
         let s = r.state();
         let height = s.base_pos_world_m[2];
-        assert!((height - 0.30).abs() < 0.02, "height {height}");
+        assert!((height - NOMINAL_BASE_HEIGHT_M).abs() < 0.02, "height {height}");
         for j in 0..NUM_JOINTS {
             assert!((s.q_rad[j] - Q0_RAD[j]).abs() < 0.05, "joint {j} drifted: {}", s.q_rad[j]);
         }

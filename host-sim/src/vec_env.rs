@@ -4,6 +4,8 @@
 //! from `hexapod_core::obs` and `hexapod_core::amp`. Actions are `[num_envs, 18]` in joint
 //! order, unscaled policy outputs (`q_d = q0 + ACTION_SCALE_RAD * a`).
 
+use hexapod_core::obs::{ACTOR_COMMAND, ACTOR_OBS_DIM, COMMAND_SCALE};
+
 /// Observations of all robots after a reset or a step.
 #[derive(Clone, Debug, Default)]
 pub struct Observations {
@@ -17,6 +19,17 @@ pub struct Observations {
     pub heights: Vec<f32>,
     /// AMP state `[N, 61]` of the current instant (noise free).
     pub amp: Vec<f32>,
+}
+
+impl Observations {
+    /// Writes `command` (vx m/s, vy m/s, wz rad/s) into robot `i`'s actor observation: for
+    /// observations already returned when [`VecEnv::set_command`] changes a command.
+    pub fn set_command(&mut self, i: usize, command: [f32; 3]) {
+        let row = &mut self.actor[i * ACTOR_OBS_DIM..(i + 1) * ACTOR_OBS_DIM];
+        for k in 0..3 {
+            row[ACTOR_COMMAND.start + k] = command[k] * COMMAND_SCALE[k];
+        }
+    }
 }
 
 /// What one policy step returns.
@@ -50,6 +63,11 @@ pub trait VecEnv {
     fn reset(&mut self) -> Observations;
     /// Applies `actions` (`[N, 18]`) for one policy step (decimation physics steps).
     fn step(&mut self, actions: &[f32]) -> StepResult;
+    /// Fixes robot `i`'s command (vx m/s, vy m/s, wz rad/s) from now on (play, evaluation):
+    /// it is no longer resampled, on resets neither, and the robot's rewards and the
+    /// observations of the next `step` or `reset` carry it. Observations already returned
+    /// keep the old command ([`Observations::set_command`] rewrites them).
+    fn set_command(&mut self, i: usize, command: [f32; 3]);
     /// Reference states that episodes may start from (reference state initialization);
     /// environments without it ignore them.
     fn set_reference_states(&mut self, _states: std::sync::Arc<[crate::reference::ReferenceState]>) {}

@@ -34,7 +34,7 @@ fn standing_observations_match_core_layout_and_scales() {
     // Standing at the nominal pose: q - q0 near zero, small velocities.
     assert!(p[PROPRIO_JOINT_POS].iter().all(|x| x.abs() < 0.05), "{:?}", &p[PROPRIO_JOINT_POS]);
     let priv_ = &r.obs.privileged[..PRIVILEGED_DIM];
-    assert!((priv_[PRIV_BASE_HEIGHT] - 0.30).abs() < 0.02, "height {}", priv_[PRIV_BASE_HEIGHT]);
+    assert!((priv_[PRIV_BASE_HEIGHT] - hexapod_core::robot::NOMINAL_BASE_HEIGHT_M).abs() < 0.02, "height {}", priv_[PRIV_BASE_HEIGHT]);
     let fz: f32 = (0..6).map(|l| priv_[PRIV_CONTACT_FORCES.start + 3 * l + 2]).sum();
     assert!((fz / CONTACT_FORCE_SCALE - 25.5 * 9.81).abs() < 25.0, "fz {fz}");
     // Height scan on flat ground: (0.30 - 0.3 - 0) * 5 ~ 0.

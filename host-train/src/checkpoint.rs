@@ -2,7 +2,7 @@
 //! keys), `config.toml` (the resolved config), `optimizer.safetensors` (Adam moments and
 //! learning rates) and `state.json` (iteration) in one directory, written atomically.
 
-use crate::algo::ppo::Ppo;
+use crate::algo::ppo::{Ppo, PpoError};
 use crate::config::TrainConfig;
 use candle_core::{Device, Tensor};
 use candle_nn::VarMap;
@@ -56,6 +56,14 @@ pub enum CheckpointError {
         expected: Vec<usize>,
         /// Shape in the file.
         found: Vec<usize>,
+    },
+    /// The learner its config describes could not be built.
+    #[error("checkpoint {path}: building its learner: {source}")]
+    Learner {
+        /// Directory.
+        path: String,
+        /// Cause.
+        source: PpoError,
     },
 }
 
@@ -217,9 +225,9 @@ pub fn load(dir: &Path, ppo: &mut Ppo, with_optimizer: bool) -> Result<(), Check
 }
 
 /// Builds the learner a checkpoint's config describes and loads its weights (no optimizer).
-pub fn load_for_inference(dir: &Path) -> Result<(TrainConfig, Ppo), crate::error::TrainError> {
+pub fn load_for_inference(dir: &Path) -> Result<(TrainConfig, Ppo), CheckpointError> {
     let cfg = load_config(dir)?;
-    let mut ppo = Ppo::new(&cfg)?;
+    let mut ppo = Ppo::new(&cfg).map_err(|source| CheckpointError::Learner { path: dir.display().to_string(), source })?;
     load(dir, &mut ppo, false)?;
     Ok((cfg, ppo))
 }

@@ -1,4 +1,5 @@
-//! The trainer's error type.
+//! The trainer's error type: it gathers the error types of the modules below it (each
+//! module keeps its own; none of them imports this one).
 
 /// Why training, playing or evaluating failed.
 #[derive(Debug, thiserror::Error)]
@@ -16,24 +17,11 @@ pub enum TrainError {
     #[error(transparent)]
     Env(#[from] crate::env::EnvError),
     /// The motion priors are missing or malformed.
-    #[error("motion priors: {0}")]
-    Priors(String),
-    /// A loss became NaN or infinite; training stopped before applying it.
-    #[error("non-finite {what} at iteration {iteration} (surrogate {surrogate}, value {value}, estimator {estimator}, discriminator {discriminator}); the weights were not updated with it")]
-    NonFiniteLoss {
-        /// Which loss.
-        what: &'static str,
-        /// Iteration.
-        iteration: usize,
-        /// Surrogate loss value.
-        surrogate: f32,
-        /// Value loss value.
-        value: f32,
-        /// Estimator loss value.
-        estimator: f32,
-        /// Discriminator loss value.
-        discriminator: f32,
-    },
+    #[error(transparent)]
+    Priors(#[from] crate::amp::prior_source::PriorSourceError),
+    /// The learner could not be built or updated (a non-finite loss among others).
+    #[error(transparent)]
+    Learner(#[from] crate::algo::ppo::PpoError),
     /// File output failed.
     #[error("i/o error on {path}: {source}")]
     Io {

@@ -3,7 +3,7 @@
 
 use crate::algo::ppo::{Ppo, UpdateStats};
 use crate::algo::storage::{RolloutStorage, Transition};
-use crate::amp::prior_source::MotionPriorSource;
+use crate::amp::prior_source::{MotionPriorSource, PriorSourceError};
 use crate::checkpoint;
 use crate::config::TrainConfig;
 use crate::error::TrainError;
@@ -87,7 +87,7 @@ impl Runner {
     ) -> Result<Self, TrainError> {
         let ppo = Ppo::new(cfg)?;
         if ppo.disc.is_some() && priors.is_none() {
-            return Err(TrainError::Priors("the style reward is on but no motion priors were given".into()));
+            return Err(TrainError::Priors(PriorSourceError("the style reward is on but no motion priors were given".into())));
         }
         if let Some(p) = &priors {
             let references = p.reference_states();

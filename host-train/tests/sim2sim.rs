@@ -4,7 +4,6 @@
 
 use host_train::checkpoint::load_for_inference;
 use host_train::cli::eval::{track_command, EstimatorError};
-use host_train::cli::play::set_command;
 use host_train::cli::sim2sim::{mujoco_env, nominal_sim, python_interpreter, rapier_env};
 use std::path::Path;
 
@@ -47,8 +46,8 @@ fn mujoco_and_rapier_observe_the_same_spawn() {
     let mut a = rapier_env(&sim).unwrap().reset();
     let mut b = mujoco(&sim).reset().unwrap();
     // The simulator draws a random command at a reset; the caller sets it, as eval does.
-    set_command(&mut a.actor, [0.3, 0.0, 0.0]);
-    set_command(&mut b.actor, [0.3, 0.0, 0.0]);
+    a.set_command(0, [0.3, 0.0, 0.0]);
+    b.set_command(0, [0.3, 0.0, 0.0]);
     for (name, x, y) in [
         ("actor", &a.actor, &b.actor),
         ("history", &a.history, &b.history),

@@ -2,6 +2,7 @@
 //! through resume, a NaN stops the run and keeps the last good checkpoint.
 
 use host_sim::vec_env::{Observations, StepResult, VecEnv};
+use host_train::algo::ppo::PpoError;
 use host_train::amp::prior_source::{MotionPriorSource, SyntheticTripod};
 use host_train::checkpoint;
 use host_train::config::TrainConfig;
@@ -80,6 +81,9 @@ impl VecEnv for PoisonedEnv {
     fn reset(&mut self) -> Observations {
         self.inner.reset()
     }
+    fn set_command(&mut self, i: usize, command: [f32; 3]) {
+        self.inner.set_command(i, command);
+    }
     fn step(&mut self, actions: &[f32]) -> StepResult {
         let mut r = self.inner.step(actions);
         self.steps += 1;
@@ -101,7 +105,7 @@ fn nan_loss_stops_the_run_and_keeps_the_last_good_checkpoint() {
     let dir = run_dir("nan");
     let mut runner = Runner::new(&cfg, Box::new(env), priors(), &dir).unwrap();
     let err = runner.learn(false).unwrap_err();
-    assert!(matches!(err.source, TrainError::NonFiniteLoss { iteration: 3, .. }), "{err}");
+    assert!(matches!(err.source, TrainError::Learner(PpoError::NonFiniteLoss { iteration: 3, .. })), "{err}");
     let good = dir.join("checkpoints/model_000002");
     assert_eq!(err.last_checkpoint.as_deref(), Some(good.as_path()));
     assert!(err.to_string().contains("model_000002"), "{err}");

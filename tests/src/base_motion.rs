@@ -4,7 +4,7 @@
 //! velocity in the base frame (x forward, y left, z up) and the base's linear acceleration
 //! in the world frame, which the simulator does not report: it is differentiated here.
 
-use hal_mock::harness::BaseState;
+use hal_mock::base::BaseState;
 use hal_mock::imu::world_to_base;
 use host_sim::robot::RobotState;
 

@@ -7,7 +7,7 @@
 //! velocities and torques for their TPDOs, and the IMU model reads the simulated base
 //! motion (see [`crate::base_motion`]).
 
-use hal_mock::harness::BaseState;
+use hal_mock::base::BaseState;
 use hal_mock::plant::{CspSetpoint, JointPlant, JointState};
 use hexapod_core::kinematics::foot_positions_base;
 use hexapod_core::robot::{FOOT_RADIUS_M, NUM_JOINTS, Q_SIT_RAD};

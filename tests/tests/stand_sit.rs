@@ -8,7 +8,7 @@ use sil_tests::sil::Sil;
 use sil_tests::sim_plant::sitting_height_m;
 
 /// Nominal standing height of the base on flat ground, m.
-const STAND_HEIGHT_M: f32 = 0.30;
+const STAND_HEIGHT_M: f32 = hexapod_core::robot::NOMINAL_BASE_HEIGHT_M;
 
 #[test]
 fn stands_up_to_the_nominal_height_and_sits_down_before_torque_off() {

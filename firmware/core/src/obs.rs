@@ -4,7 +4,7 @@
 //! simulator adds uniform noise in `+-(noise * scale)` per entry (noise level 1). Clipping
 //! at `+-OBS_CLIP` follows the scaling.
 
-use crate::robot::{NUM_JOINTS, Q0_RAD};
+use crate::robot::{NUM_JOINTS, NUM_LEGS, Q0_RAD};
 use core::ops::Range;
 use nalgebra::Vector3;
 
@@ -101,6 +101,57 @@ pub const PRIV_PERTURBATION: Range<usize> = 23..29;
 pub const PRIV_COLLISIONS: Range<usize> = 29..42;
 /// Contact force scale of the privileged state, 1/N.
 pub const CONTACT_FORCE_SCALE: f32 = 0.01;
+
+/// The privileged state's parts by name, in physical units; [`PrivilegedState::to_obs`]
+/// scales each into its `PRIV_*` range.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PrivilegedState {
+    /// Base linear velocity, base frame, m/s.
+    pub lin_vel_base_m_s: [f32; 3],
+    /// Base height above the terrain, m.
+    pub base_height_m: f32,
+    /// Foot friction coefficient.
+    pub friction: f32,
+    /// Foot contact forces, world frame, N (leg order).
+    pub foot_force_world_n: [[f32; 3]; NUM_LEGS],
+    /// The last push's velocity change, world frame, m/s (zero when none).
+    pub push_world_m_s: [f32; 3],
+    /// The trunk touches something.
+    pub trunk_collision: bool,
+    /// Each thigh touches something (leg order).
+    pub thigh_collisions: [bool; NUM_LEGS],
+    /// Each shank touches something (leg order).
+    pub shank_collisions: [bool; NUM_LEGS],
+}
+
+impl PrivilegedState {
+    /// The privileged vector: each part scaled into its `PRIV_*` range.
+    pub fn to_obs(&self) -> [f32; PRIVILEGED_DIM] {
+        let mut p = [0.0; PRIVILEGED_DIM];
+        for k in 0..3 {
+            p[PRIV_LIN_VEL.start + k] = self.lin_vel_base_m_s[k] * LIN_VEL_SCALE;
+        }
+        p[PRIV_BASE_HEIGHT] = self.base_height_m;
+        p[PRIV_FRICTION] = self.friction;
+        for (leg, force) in self.foot_force_world_n.iter().enumerate() {
+            for k in 0..3 {
+                p[PRIV_CONTACT_FORCES.start + 3 * leg + k] = force[k] * CONTACT_FORCE_SCALE;
+            }
+        }
+        let push = self.push_world_m_s;
+        let norm = libm::sqrtf(push[0] * push[0] + push[1] * push[1] + push[2] * push[2]);
+        for k in 0..3 {
+            p[PRIV_PERTURBATION.start + k] = push[k];
+            p[PRIV_PERTURBATION.start + 3 + k] = if norm > 1e-6 { push[k] / norm } else { 0.0 };
+        }
+        p[PRIV_COLLISIONS.start] = self.trunk_collision as u8 as f32;
+        for leg in 0..NUM_LEGS {
+            p[PRIV_COLLISIONS.start + 1 + leg] = self.thigh_collisions[leg] as u8 as f32;
+            p[PRIV_COLLISIONS.start + 1 + NUM_LEGS + leg] = self.shank_collisions[leg] as u8 as f32;
+        }
+        p
+    }
+}
 
 /// Height scan rows along x.
 pub const HEIGHT_SCAN_NX: usize = 17;

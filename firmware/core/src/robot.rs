@@ -140,6 +140,9 @@ pub const TRIPOD_B_MASK: u8 = (1 << 3) | (1 << 1) | (1 << 5);
 pub const TRUNK_SIZE_M: [f32; 3] = [0.60, 0.30, 0.12];
 /// Trunk mass.
 pub const TRUNK_MASS_KG: f32 = 14.8;
+/// Nominal standing height of the base above flat ground, at [`Q0_RAD`] (kinematics with the
+/// foot radius: 0.308 m), rounded to the centimetre.
+pub const NOMINAL_BASE_HEIGHT_M: f32 = 0.31;
 /// Hip joint positions in the base frame, per leg.
 pub const HIP_POS_BASE_M: [[f32; 3]; NUM_LEGS] = [
     [0.25, -0.15, 0.0],
@@ -255,6 +258,15 @@ pub const fn joint_of_node(node_id: u8) -> Option<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn nominal_base_height_is_the_standing_pose_to_the_centimetre() {
+        for leg in Leg::ALL {
+            let foot = crate::kinematics::foot_position_base(leg, Q0_LEG_RAD);
+            let height_m = -foot[2] + FOOT_RADIUS_M;
+            assert!((height_m - NOMINAL_BASE_HEIGHT_M).abs() < 0.005, "{leg:?}: {height_m}");
+        }
+    }
 
     #[test]
     fn total_mass_is_25_5_kg() {

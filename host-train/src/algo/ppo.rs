@@ -7,9 +7,8 @@ use crate::algo::adam::Adam;
 use crate::algo::storage::{gather_rows, RolloutStorage};
 use crate::amp::discriminator::Discriminator;
 use crate::amp::prior_source::MotionPriorSource;
-use crate::amp::replay::ReplayBuffer;
+use crate::amp::transition_buffer::TransitionBuffer;
 use crate::config::{LrSchedule, TrainConfig};
-use crate::error::TrainError;
 use crate::nn::actor_critic::{ActorCritic, CriticInput};
 use candle_core::{DType, Device, Result, Tensor};
 use candle_nn::VarMap;
@@ -21,6 +20,30 @@ use host_sim::vec_env::Observations;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
+
+/// Why the learner could not be built or updated.
+#[derive(Debug, thiserror::Error)]
+pub enum PpoError {
+    /// A tensor operation failed.
+    #[error("tensor error: {0}")]
+    Candle(#[from] candle_core::Error),
+    /// A loss became NaN or infinite; training stopped before applying it.
+    #[error("non-finite {what} at iteration {iteration} (surrogate {surrogate}, value {value}, estimator {estimator}, discriminator {discriminator}); the weights were not updated with it")]
+    NonFiniteLoss {
+        /// Which loss.
+        what: &'static str,
+        /// Iteration.
+        iteration: usize,
+        /// Surrogate loss value.
+        surrogate: f32,
+        /// Value loss value.
+        value: f32,
+        /// Estimator loss value.
+        estimator: f32,
+        /// Discriminator loss value.
+        discriminator: f32,
+    },
+}
 
 /// What the policy does for one batch of observations.
 pub struct ActOutput {
@@ -81,7 +104,7 @@ impl Minibatch {
 
 /// AMP transitions for one minibatch, flat `[B, 61]` each.
 pub struct AmpBatch {
-    /// Policy `s_t` (from the replay buffer).
+    /// Policy `s_t` (from the transition buffer).
     pub policy_s: Vec<f32>,
     /// Policy `s_t+1`.
     pub policy_sn: Vec<f32>,
@@ -122,7 +145,7 @@ pub struct UpdateStats {
     pub action_std: f32,
 }
 
-/// The PPO + AMP learner: networks, normalizers, optimizers, replay buffer.
+/// The PPO + AMP learner: networks, normalizers, optimizers, transition buffer.
 pub struct Ppo {
     /// Resolved configuration.
     pub cfg: TrainConfig,
@@ -143,8 +166,8 @@ pub struct Ppo {
     /// Adam over the discriminator.
     pub disc_opt: Option<Adam>,
     /// Policy transitions for the discriminator.
-    pub replay: Option<ReplayBuffer>,
-    /// Learner randomness (action noise, minibatches, replay sampling).
+    pub transitions: Option<TransitionBuffer>,
+    /// Learner randomness (action noise, minibatches, transition sampling).
     pub rng: ChaCha8Rng,
 }
 
@@ -223,15 +246,15 @@ fn tensor(data: Vec<f32>, cols: usize, device: &Device) -> Result<Tensor> {
 
 impl Ppo {
     /// Builds networks and optimizers from a config.
-    pub fn new(cfg: &TrainConfig) -> std::result::Result<Self, TrainError> {
+    pub fn new(cfg: &TrainConfig) -> std::result::Result<Self, PpoError> {
         let device = Device::Cpu;
         let (params, stats, disc_params) = (VarMap::new(), VarMap::new(), VarMap::new());
         let ac = ActorCritic::new(&cfg.policy, &params, &stats, DType::F32, &device)?;
-        let (disc, disc_opt, replay) = if cfg.amp_enabled() {
+        let (disc, disc_opt, transitions) = if cfg.amp_enabled() {
             let d = Discriminator::new(&cfg.amp.discriminator_hidden, &disc_params, &stats, DType::F32, &device)?;
             let opt = Adam::new(&disc_params, cfg.amp.learning_rate)?
                 .with_weight_decay(|name| disc_weight_decay(&cfg.amp, name));
-            (Some(d), Some(opt), Some(ReplayBuffer::new(cfg.amp.replay_buffer_size)))
+            (Some(d), Some(opt), Some(TransitionBuffer::new(cfg.amp.replay_buffer_size)))
         } else {
             (None, None, None)
         };
@@ -246,7 +269,7 @@ impl Ppo {
             disc,
             opt,
             disc_opt,
-            replay,
+            transitions,
             rng: ChaCha8Rng::seed_from_u64(cfg.runner.seed),
         })
     }
@@ -321,7 +344,7 @@ impl Ppo {
         storage: &RolloutStorage,
         priors: Option<&mut dyn MotionPriorSource>,
         iteration: usize,
-    ) -> std::result::Result<UpdateStats, TrainError> {
+    ) -> std::result::Result<UpdateStats, PpoError> {
         let p = self.cfg.ppo.clone();
         let old_log_std = self.ac.log_std.detach().copy()?;
         let mut priors = priors;
@@ -330,9 +353,9 @@ impl Ppo {
         for _epoch in 0..p.num_learning_epochs {
             for idx in storage.minibatch_indices(p.num_mini_batches, &mut self.rng) {
                 let mb = Minibatch::gather(storage, &idx, &self.device)?;
-                let amp = match (&self.replay, priors.as_deref_mut()) {
-                    (Some(replay), Some(src)) if self.disc.is_some() => {
-                        let (policy_s, policy_sn) = replay.sample(idx.len(), &mut self.rng);
+                let amp = match (&self.transitions, priors.as_deref_mut()) {
+                    (Some(transitions), Some(src)) if self.disc.is_some() => {
+                        let (policy_s, policy_sn) = transitions.sample(idx.len(), &mut self.rng);
                         let (prior_s, prior_sn) = src.sample(idx.len(), &mut self.rng);
                         Some(AmpBatch { policy_s, policy_sn, prior_s, prior_sn })
                     }
@@ -384,7 +407,7 @@ impl Ppo {
         old_log_std: &Tensor,
         amp: Option<&AmpBatch>,
         iteration: usize,
-    ) -> std::result::Result<UpdateStats, TrainError> {
+    ) -> std::result::Result<UpdateStats, PpoError> {
         let p = &self.cfg.ppo;
         let out = self.ac.policy(&mb.actor, &mb.history)?;
         let kl = gaussian_kl(&mb.old_mean, old_log_std, &out.mean, &self.ac.log_std)?;
@@ -434,7 +457,7 @@ impl Ppo {
         st.value = vloss.to_scalar::<f32>()?;
         st.entropy = entropy.to_scalar::<f32>()?;
         if !loss_v.is_finite() {
-            return Err(TrainError::NonFiniteLoss {
+            return Err(PpoError::NonFiniteLoss {
                 what: "total loss",
                 iteration,
                 surrogate: st.surrogate,
@@ -460,14 +483,14 @@ impl Ppo {
         Ok(st)
     }
 
-    /// Pushes policy transitions into the replay buffer (skipping robots whose actions were invalid).
+    /// Pushes policy transitions into the transition buffer (skipping robots whose actions were invalid).
     pub fn record_policy_transitions(&mut self, amp: &[f32], amp_next: &[f32], invalid: &[bool]) {
-        if let Some(replay) = &mut self.replay {
+        if let Some(transitions) = &mut self.transitions {
             if invalid.iter().any(|&x| x) {
                 let keep: Vec<usize> = (0..invalid.len()).filter(|&i| !invalid[i]).collect();
-                replay.insert(&gather_rows(amp, AMP_STATE_DIM, &keep), &gather_rows(amp_next, AMP_STATE_DIM, &keep));
+                transitions.insert(&gather_rows(amp, AMP_STATE_DIM, &keep), &gather_rows(amp_next, AMP_STATE_DIM, &keep));
             } else {
-                replay.insert(amp, amp_next);
+                transitions.insert(amp, amp_next);
             }
         }
     }

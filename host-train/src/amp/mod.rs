@@ -1,6 +1,6 @@
 //! Adversarial motion priors: the discriminator with its explicit gradient penalty, the
-//! replay buffer of policy transitions, and the source of prior transitions.
+//! buffer of policy transitions, and the source of prior transitions.
 
 pub mod discriminator;
 pub mod prior_source;
-pub mod replay;
+pub mod transition_buffer;

@@ -68,13 +68,17 @@ impl MotionPriorSource for SyntheticTripod {
     }
 }
 
+/// Why the motion priors are missing or malformed.
+#[derive(Debug, thiserror::Error)]
+#[error("motion priors: {0}")]
+pub struct PriorSourceError(pub String);
+
 /// The prior source a config asks for (`None` when the style reward is off). Dataset
 /// priors must cover the configured command range ([`MotionDataset::check_command_coverage`]).
 pub fn load_prior_source(
     cfg: &crate::config::TrainConfig,
-) -> Result<Option<Box<dyn MotionPriorSource>>, crate::error::TrainError> {
+) -> Result<Option<Box<dyn MotionPriorSource>>, PriorSourceError> {
     use crate::config::PriorKind;
-    use crate::error::TrainError;
     if !cfg.amp_enabled() {
         return Ok(None);
     }
@@ -83,13 +87,13 @@ pub fn load_prior_source(
         PriorKind::Dataset => {
             let dir = crate::config::resolve_path(&cfg.amp.priors_dir);
             let dataset = MotionDataset::load(&dir, cfg.amp.prior_states).map_err(|e| {
-                TrainError::Priors(format!("{e} (generate the clips with `hexapod priors`, or set amp.priors_dir)"))
+                PriorSourceError(format!("{e} (generate the clips with `hexapod priors`, or set amp.priors_dir)"))
             })?;
             let sim = cfg.resolved_sim();
             let c = &sim.commands;
             dataset
                 .check_command_coverage([c.lin_vel_x_m_s, c.lin_vel_y_m_s, c.ang_vel_z_rad_s], c.zero_probability)
-                .map_err(|e| TrainError::Priors(e.to_string()))?;
+                .map_err(|e| PriorSourceError(e.to_string()))?;
             Ok(Some(Box::new(dataset)))
         }
     }

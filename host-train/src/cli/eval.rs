@@ -6,8 +6,7 @@
 
 use crate::algo::ppo::Ppo;
 use crate::checkpoint::load_for_inference;
-use crate::cli::play::set_command;
-use crate::cli::terrain_test::{terrain_test, TerrainTestResult};
+use crate::cli::terrain_walk::{terrain_walk, TerrainWalkResult};
 use crate::config::EnvKind;
 use crate::env::make_env;
 use anyhow::Context;
@@ -142,7 +141,7 @@ pub struct EvalReport {
     /// The push test (simulator only).
     pub push_test: Option<PushTestResult>,
     /// The terrain test (simulator only; policies trained on tiles, or on request).
-    pub terrain_test: Option<TerrainTestResult>,
+    pub terrain_test: Option<TerrainWalkResult>,
 }
 
 /// Speed change of the push test's pushes, m/s.
@@ -181,6 +180,9 @@ fn push_test(cfg: &crate::config::TrainConfig, ppo: &mut crate::algo::ppo::Ppo, 
     let dt = hexapod_core::timing::POLICY_DT_S;
     let steps = (PUSH_TEST_DURATION_S / dt).round() as usize;
     let every = (PUSH_TEST_INTERVAL_S / dt).round() as usize;
+    for i in 0..n {
+        env.set_command(i, PUSH_TEST_COMMAND);
+    }
     let mut obs = env.reset();
     let (mut fell, mut pushes, mut vx, mut samples) = (vec![false; n], 0usize, 0.0f64, 0usize);
     for step in 0..steps {
@@ -191,7 +193,6 @@ fn push_test(cfg: &crate::config::TrainConfig, ppo: &mut crate::algo::ppo::Ppo, 
             }
             pushes += 1;
         }
-        set_command(&mut obs.actor, PUSH_TEST_COMMAND);
         let act = ppo.act(&obs, true)?;
         let res = env.step(&act.actions);
         for i in 0..n {
@@ -231,6 +232,8 @@ pub fn contact_mask(privileged: &[f32]) -> u8 {
 pub trait TrackEnv {
     /// Number of robots.
     fn num_envs(&self) -> usize;
+    /// Fixes robot `i`'s command (rewards and the next observations carry it).
+    fn set_command(&mut self, i: usize, command: [f32; 3]);
     /// Resets all robots.
     fn reset(&mut self) -> anyhow::Result<Observations>;
     /// One policy step.
@@ -240,6 +243,9 @@ pub trait TrackEnv {
 impl TrackEnv for Box<dyn VecEnv> {
     fn num_envs(&self) -> usize {
         VecEnv::num_envs(self.as_ref())
+    }
+    fn set_command(&mut self, i: usize, command: [f32; 3]) {
+        VecEnv::set_command(self.as_mut(), i, command)
     }
     fn reset(&mut self) -> anyhow::Result<Observations> {
         Ok(VecEnv::reset(self.as_mut()))
@@ -252,6 +258,9 @@ impl TrackEnv for Box<dyn VecEnv> {
 impl TrackEnv for MujocoEnv {
     fn num_envs(&self) -> usize {
         1
+    }
+    fn set_command(&mut self, _i: usize, command: [f32; 3]) {
+        MujocoEnv::set_command(self, command)
     }
     fn reset(&mut self) -> anyhow::Result<Observations> {
         MujocoEnv::reset(self)
@@ -290,13 +299,15 @@ pub fn track_command(
     estimator: &mut EstimatorError,
 ) -> anyhow::Result<CommandResult> {
     let n = env.num_envs();
+    for i in 0..n {
+        env.set_command(i, command);
+    }
     let mut obs = env.reset()?;
     let mut fell = vec![false; n];
     let (mut lin_err, mut yaw_err, mut mean_v, mut samples) = (0.0f64, 0.0f64, [0.0f64; 3], 0usize);
     let (mut tripod, mut contact_samples) = (0usize, 0usize);
     let mut feet_down = [0usize; 7];
     for step in 0..steps {
-        set_command(&mut obs.actor, command);
         let act = ppo.act(&obs, true)?;
         let res = env.step(&act.actions)?;
         for i in 0..n {
@@ -410,7 +421,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let push = if cfg.env.kind == EnvKind::Sim { Some(push_test(&cfg, &mut ppo, n)?) } else { None };
     let on_tiles = cfg.resolved_sim().terrain.tiles;
     let terrain = if cfg.env.kind == EnvKind::Sim && (args.terrain || on_tiles) {
-        Some(terrain_test(&cfg, &mut ppo, args.terrain_robots)?)
+        Some(terrain_walk(&cfg, &mut ppo, args.terrain_robots)?)
     } else {
         None
     };
@@ -438,7 +449,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         );
     }
     if let Some(t) = &report.terrain_test {
-        crate::cli::terrain_test::print(t);
+        crate::cli::terrain_walk::print(t);
     }
     println!(
         "mean: lin err {:.3} m/s, fall rate {:.2}, tripod score {:.2}, estimator error {:.3} m/s",

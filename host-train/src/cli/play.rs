@@ -3,7 +3,7 @@
 //! ground or on one tile of the terrain grid (`--tile StairsUp --level 5`).
 
 use crate::checkpoint::load_for_inference;
-use crate::cli::replay::{render_replay, ReplayFrame};
+use crate::cli::replay_gif::{render_replay, ReplayFrame};
 use crate::cli::eval::{contact_mask, SETTLE_STEPS};
 use crate::config::EnvKind;
 use crate::env::make_env;
@@ -101,15 +101,6 @@ fn place_on_tile(env: &mut HexapodEnv, tile: &str, level: Option<usize>) -> anyh
     Ok(())
 }
 
-/// Overwrites the command slot of actor observations `[N, 63]`.
-pub fn set_command(actor: &mut [f32], command: [f32; 3]) {
-    for row in actor.chunks_exact_mut(ACTOR_OBS_DIM) {
-        for k in 0..3 {
-            row[ACTOR_COMMAND.start + k] = command[k] * COMMAND_SCALE[k];
-        }
-    }
-}
-
 /// Runs `hexapod play`.
 pub fn run(args: PlayArgs) -> anyhow::Result<()> {
     let checkpoint = crate::checkpoint::resolve_dir(&args.checkpoint)?;
@@ -143,11 +134,14 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
             PlayEnv::Other(make_env(&cfg)?)
         }
     };
-    let mut obs = play_env.env().reset();
     let command = match args.command.as_slice() {
         [vx, vy, wz] => Some([*vx, *vy, *wz]),
         other => anyhow::bail!("--command takes vx,vy,wz (3 values), got {}", other.len()),
     };
+    if let Some(c) = command {
+        play_env.env().set_command(0, c);
+    }
+    let mut obs = play_env.env().reset();
     if let Some([vx, vy, wz]) = command {
         eprintln!("play {}: command vx {vx} m/s, vy {vy} m/s, wz {wz} rad/s for {:.1} s -> {}", checkpoint.display(), args.steps as f32 * POLICY_DT_S, out.display());
     }
@@ -170,9 +164,6 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
     let (mut time_s, mut stance_masks) = (Vec::with_capacity(args.steps), Vec::with_capacity(args.steps));
     let mut summary = Summary::default();
     for step in 0..args.steps {
-        if let Some(c) = command {
-            set_command(&mut obs.actor, c);
-        }
         let act = ppo.act(&obs, true)?;
         let t = step as f32 * POLICY_DT_S;
         let a = &obs.actor[..ACTOR_OBS_DIM];

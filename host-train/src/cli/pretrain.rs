@@ -254,9 +254,9 @@ mod tests {
 
     #[test]
     fn command_round_trips_through_the_actor_observation() {
-        let mut row = [0.0f32; ACTOR_OBS_DIM];
-        crate::cli::play::set_command(&mut row, [0.3, -0.1, 0.4]);
-        let c = command_of(&row);
+        let mut obs = host_sim::vec_env::Observations { actor: vec![0.0; ACTOR_OBS_DIM], ..Default::default() };
+        obs.set_command(0, [0.3, -0.1, 0.4]);
+        let c = command_of(&obs.actor);
         assert!((c[0] - 0.3).abs() < 1e-6 && (c[1] + 0.1).abs() < 1e-6 && (c[2] - 0.4).abs() < 1e-6);
     }
 

@@ -6,7 +6,7 @@ use crate::priors::command::default_commands;
 use crate::priors::dataset::MotionDataset;
 use crate::priors::generate::{generate_clip, ClipReport, GeneratorConfig};
 use crate::priors::plot::plot_clip;
-use crate::priors::replay::{replay_clip, ReplayConfig, ReplayReport};
+use crate::priors::sim_tracking::{replay_clip, ReplayConfig, ReplayReport};
 use anyhow::{bail, Context};
 use host_sim::robot::RobotWorld;
 use host_sim::terrain::{Terrain, TerrainConfig};

@@ -11,8 +11,8 @@
 use hexapod_core::amp::{amp_state, AMP_STATE_DIM};
 use hexapod_core::nets::ACTOR_OUT;
 use hexapod_core::obs::{
-    actor_obs, proprio_noise_scale, proprio_obs, ProprioHistory, ACTOR_OBS_DIM, HEIGHT_SCAN_DIM,
-    HISTORY_DIM, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_BASE_HEIGHT, PRIV_FRICTION, PRIV_LIN_VEL,
+    actor_obs, proprio_noise_scale, proprio_obs, PrivilegedState, ProprioHistory, ACTOR_OBS_DIM, HEIGHT_SCAN_DIM,
+    HISTORY_DIM, PRIVILEGED_DIM,
     PROPRIO_DIM,
 };
 use hexapod_core::robot::{NUM_JOINTS, Q0_RAD};
@@ -24,7 +24,7 @@ use rand_chacha::ChaCha8Rng;
 /// Body velocity per rad of mean joint offset.
 const VEL_GAIN: f32 = 4.0;
 /// Standing height reported in the privileged and AMP states, m.
-const HEIGHT_M: f32 = 0.31;
+const HEIGHT_M: f32 = hexapod_core::robot::NOMINAL_BASE_HEIGHT_M;
 
 struct Robot {
     q_off: [f32; NUM_JOINTS],
@@ -45,6 +45,8 @@ pub struct PointMassEnv {
     task_reward: bool,
     penalties: bool,
     rng: ChaCha8Rng,
+    /// Commands set by [`VecEnv::set_command`], kept instead of the random ones.
+    fixed_commands: Vec<Option<[f32; 3]>>,
 }
 
 impl PointMassEnv {
@@ -52,7 +54,7 @@ impl PointMassEnv {
     pub fn new(num_envs: usize, episode_steps: usize, task_reward: bool, penalties: bool, seed: u64) -> Self {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let robots = (0..num_envs).map(|_| Self::fresh(&mut rng)).collect();
-        Self { robots, episode_steps, task_reward, penalties, rng }
+        Self { robots, episode_steps, task_reward, penalties, rng, fixed_commands: vec![None; num_envs] }
     }
 
     fn fresh(rng: &mut ChaCha8Rng) -> Robot {
@@ -102,12 +104,13 @@ impl PointMassEnv {
         for r in &self.robots {
             obs.actor.extend_from_slice(&actor_obs(r.command, &r.prev_action, r.history.newest()));
             obs.history.extend_from_slice(&r.history.flatten());
-            let mut p = [0.0f32; PRIVILEGED_DIM];
-            p[PRIV_LIN_VEL.start] = r.vel[0] * LIN_VEL_SCALE;
-            p[PRIV_LIN_VEL.start + 1] = r.vel[1] * LIN_VEL_SCALE;
-            p[PRIV_BASE_HEIGHT] = HEIGHT_M;
-            p[PRIV_FRICTION] = 1.0;
-            obs.privileged.extend_from_slice(&p);
+            let p = PrivilegedState {
+                lin_vel_base_m_s: [r.vel[0], r.vel[1], 0.0],
+                base_height_m: HEIGHT_M,
+                friction: 1.0,
+                ..Default::default()
+            };
+            obs.privileged.extend_from_slice(&p.to_obs());
             obs.amp.extend_from_slice(&Self::amp(r));
         }
         obs
@@ -119,9 +122,17 @@ impl VecEnv for PointMassEnv {
         self.robots.len()
     }
 
+    fn set_command(&mut self, i: usize, command: [f32; 3]) {
+        self.fixed_commands[i] = Some(command);
+        self.robots[i].command = command;
+    }
+
     fn reset(&mut self) -> Observations {
         for i in 0..self.robots.len() {
             self.robots[i] = Self::fresh(&mut self.rng);
+            if let Some(c) = self.fixed_commands[i] {
+                self.robots[i].command = c;
+            }
             let o = Self::observe_proprio(&mut self.robots[i], &mut self.rng);
             self.robots[i].history = ProprioHistory::filled_with(&o);
         }
@@ -178,6 +189,9 @@ impl VecEnv for PointMassEnv {
                 sum_task += r.sum_task / r.steps as f32;
                 sum_pen += r.sum_penalty / r.steps as f32;
                 *r = Self::fresh(&mut self.rng);
+                if let Some(c) = self.fixed_commands[i] {
+                    r.command = c;
+                }
                 let o = Self::observe_proprio(r, &mut self.rng);
                 r.history = ProprioHistory::filled_with(&o);
             } else {

@@ -5,11 +5,11 @@
 //! Two kinds of reference states ([`PriorStates`]): the clips' own frames (the trajectory
 //! optimization's states, which the simulated robot cannot quite reach: under the drives it
 //! walks about 2.5 cm lower with 0.05-0.08 rad RMS joint differences), or the states of the
-//! simulator tracking each clip (`replay::replay_clip`), which lie on the robot's reachable
+//! simulator tracking each clip (`sim_tracking::replay_clip`), which lie on the robot's reachable
 //! manifold by construction.
 
 use super::clip::{ClipError, LoopMode, MotionClip};
-use super::replay::{replay_clip, ReplayConfig};
+use super::sim_tracking::{replay_clip, ReplayConfig};
 use hexapod_core::amp::AMP_STATE_DIM;
 use host_sim::reference::ReferenceState;
 use rand::Rng;

@@ -10,7 +10,7 @@
 //! together and reports solver status, objective and constraint violations per clip.
 //!
 //! Consumers: [`dataset`] loads a directory of clips and samples (s_t, s_t+1) AMP-state
-//! transitions weighted by `MotionWeight`; [`replay`] plays clips in host-sim through the CSP
+//! transitions weighted by `MotionWeight`; [`sim_tracking`] plays clips in host-sim through the CSP
 //! drives and checks that the robot stays upright and walks at the command.
 pub mod assemble;
 pub mod body;
@@ -24,8 +24,8 @@ pub mod geom;
 pub mod optimize;
 pub mod plot;
 pub mod qp;
-pub mod replay;
 pub mod schedule;
+pub mod sim_tracking;
 
 #[cfg(test)]
 mod tests;

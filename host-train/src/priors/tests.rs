@@ -6,7 +6,7 @@ use super::command::{default_commands, GaitCommand};
 use super::dataset::{MotionDataset, PriorStates, ReferenceMotion};
 use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_JOINT_POS, AMP_JOINT_VEL};
 use super::generate::{generate_clip, GeneratorConfig};
-use super::replay::{replay_clip, sim_amp_state, ReplayConfig};
+use super::sim_tracking::{replay_clip, sim_amp_state, ReplayConfig};
 use hexapod_core::robot::{TRIPOD_A, TRIPOD_B};
 use host_sim::frames::rotate;
 use host_sim::robot::{RobotState, RobotWorld};

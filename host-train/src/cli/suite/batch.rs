@@ -4,7 +4,6 @@
 
 use crate::algo::ppo::Ppo;
 use crate::config::TrainConfig;
-use hexapod_core::obs::{ACTOR_COMMAND, ACTOR_OBS_DIM, COMMAND_SCALE};
 use hexapod_core::timing::POLICY_DT_S;
 use host_sim::config::{EnvConfig, RandomizationConfig};
 use host_sim::env::HexapodEnv;
@@ -93,15 +92,6 @@ pub fn steps(s: f32) -> usize {
     (s / POLICY_DT_S).round() as usize
 }
 
-/// Writes each robot's command into its actor observation row.
-pub fn set_commands(actor: &mut [f32], commands: &[[f32; 3]]) {
-    for (row, c) in actor.chunks_exact_mut(ACTOR_OBS_DIM).zip(commands) {
-        for k in 0..3 {
-            row[ACTOR_COMMAND.start + k] = c[k] * COMMAND_SCALE[k];
-        }
-    }
-}
-
 /// Runs `steps` policy steps. Before each step `before(step, env, commands)` may push
 /// robots and set each robot's command; after it `after(step, env, result)` reads the
 /// outcome (a robot whose episode ended is already reset in `env`).
@@ -119,8 +109,8 @@ pub fn drive(
         before(step, env, &mut commands);
         for (i, c) in commands.iter().enumerate() {
             env.set_command(i, *c);
+            obs.set_command(i, *c);
         }
-        set_commands(&mut obs.actor, &commands);
         let act = ppo.act(&obs, true)?;
         let res = env.step(&act.actions);
         after(step, env, &res);

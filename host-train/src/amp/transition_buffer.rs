@@ -5,7 +5,7 @@ use hexapod_core::amp::AMP_STATE_DIM;
 use rand::{Rng, RngCore};
 
 /// Fixed-capacity ring buffer of AMP transitions.
-pub struct ReplayBuffer {
+pub struct TransitionBuffer {
     capacity: usize,
     len: usize,
     next: usize,
@@ -13,7 +13,7 @@ pub struct ReplayBuffer {
     next_states: Vec<f32>,
 }
 
-impl ReplayBuffer {
+impl TransitionBuffer {
     /// An empty buffer for `capacity` transitions (allocated once).
     pub fn new(capacity: usize) -> Self {
         Self {
@@ -73,7 +73,7 @@ mod tests {
 
     #[test]
     fn keeps_the_newest_and_samples_only_stored_pairs() {
-        let mut buf = ReplayBuffer::new(3);
+        let mut buf = TransitionBuffer::new(3);
         buf.insert(&rows(&[1.0, 2.0]), &rows(&[11.0, 12.0]));
         assert_eq!(buf.len(), 2);
         buf.insert(&rows(&[3.0, 4.0]), &rows(&[13.0, 14.0]));

@@ -1,5 +1,6 @@
-//! Replay validation: the simulator's drives track a clip's joint trajectories (CSP law, no
-//! feedforward), and the robot must stay upright and walk at the commanded velocity.
+//! Simulator tracking of the priors: the clip is replayed in the simulator, its drives
+//! tracking the clip's joint trajectories (CSP law, no feedforward), and the robot must stay
+//! upright and walk at the commanded velocity.
 //!
 //! The robot starts in the clip's first pose, settles for `settle_s` holding it, then plays
 //! `cycles` gait cycles; targets are linearly interpolated between frames at the physics

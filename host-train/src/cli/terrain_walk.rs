@@ -6,7 +6,6 @@
 //! every heading climbs (or descends) the feature, as in legged_gym.
 
 use crate::algo::ppo::Ppo;
-use crate::cli::play::set_command;
 use crate::config::TrainConfig;
 use host_sim::terrain::TerrainConfig;
 use host_sim::vec_env::VecEnv;
@@ -39,7 +38,7 @@ pub struct TileResult {
 
 /// The terrain test's results.
 #[derive(Debug, Serialize)]
-pub struct TerrainTestResult {
+pub struct TerrainWalkResult {
     /// Command (vx, vy, wz).
     pub command: [f32; 3],
     /// Length of each run, s.
@@ -62,7 +61,7 @@ pub fn test_levels(rows: usize) -> Vec<usize> {
 
 /// Runs the terrain test with `per_kind` robots on each tile kind. A checkpoint trained on
 /// flat ground is tested on the default tile grid.
-pub fn terrain_test(cfg: &TrainConfig, ppo: &mut Ppo, per_kind: usize) -> anyhow::Result<TerrainTestResult> {
+pub fn terrain_walk(cfg: &TrainConfig, ppo: &mut Ppo, per_kind: usize) -> anyhow::Result<TerrainWalkResult> {
     let mut sim = cfg.resolved_sim();
     if !sim.terrain.tiles {
         sim.terrain = TerrainConfig { tiles: true, ..TerrainConfig::default() };
@@ -79,12 +78,12 @@ pub fn terrain_test(cfg: &TrainConfig, ppo: &mut Ppo, per_kind: usize) -> anyhow
     for level in test_levels(sim.terrain.rows) {
         for i in 0..n {
             env.set_terrain_tile(i, level, i % kinds.len());
+            env.set_command(i, TERRAIN_TEST_COMMAND);
         }
         let mut obs = env.reset();
         let mut fell = vec![false; n];
         let mut distance_m = vec![0.0f32; n];
         for _ in 0..steps {
-            set_command(&mut obs.actor, TERRAIN_TEST_COMMAND);
             let act = ppo.act(&obs, true)?;
             let res = env.step(&act.actions);
             for i in 0..n {
@@ -115,7 +114,7 @@ pub fn terrain_test(cfg: &TrainConfig, ppo: &mut Ppo, per_kind: usize) -> anyhow
         }
     }
     let fall_rate = tiles.iter().map(|t| t.fall_rate).sum::<f64>() / tiles.len().max(1) as f64;
-    Ok(TerrainTestResult {
+    Ok(TerrainWalkResult {
         command: TERRAIN_TEST_COMMAND,
         duration_s: TERRAIN_TEST_DURATION_S,
         commanded_distance_m: TERRAIN_TEST_COMMAND[0].hypot(TERRAIN_TEST_COMMAND[1]) * TERRAIN_TEST_DURATION_S,
@@ -125,7 +124,7 @@ pub fn terrain_test(cfg: &TrainConfig, ppo: &mut Ppo, per_kind: usize) -> anyhow
 }
 
 /// Prints the terrain test as a table.
-pub fn print(t: &TerrainTestResult) {
+pub fn print(t: &TerrainWalkResult) {
     println!(
         "terrain test: ({:.1},{:.1},{:.1}) for {:.0} s ({:.1} m commanded), random headings",
         t.command[0], t.command[1], t.command[2], t.duration_s, t.commanded_distance_m

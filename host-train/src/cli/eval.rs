@@ -2,17 +2,21 @@
 //! rate under the environment's random pushes, a tripod score (fraction of time the stance
 //! set is exactly one of the two tripods), and a push test (0.5 m/s shoves every 4 s for a
 //! 20 s episode), for a checkpoint. `--suite paper` runs the paper's experiments instead,
-//! for one or several checkpoints ([`crate::cli::suite`]).
+//! for one or several checkpoints ([`crate::cli::suite`]). With `--rerun` (a build with the
+//! `rerun` feature), a rerun recording of the first robot at every command.
 
 use crate::checkpoint::load_for_inference;
-use crate::cli::play::set_command;
+use crate::cli::play::{set_command, PlayEnv};
+use crate::cli::recording::{require_rerun, Recording};
 use crate::cli::terrain_test::{terrain_test, TerrainTestResult};
 use crate::config::EnvKind;
-use crate::env::make_env;
 use anyhow::Context;
 use clap::Args;
 use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_STATE_DIM};
-use hexapod_core::obs::{CONTACT_FORCE_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_CONTACT_FORCES, PRIV_LIN_VEL};
+use hexapod_core::obs::{
+    CONTACT_FORCE_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_BASE_HEIGHT, PRIV_CONTACT_FORCES, PRIV_LIN_VEL,
+};
+use hexapod_core::timing::POLICY_DT_S;
 use hexapod_core::robot::{NUM_LEGS, TRIPOD_A_MASK, TRIPOD_B_MASK};
 use serde::Serialize;
 use std::path::PathBuf;
@@ -68,6 +72,12 @@ pub struct EvalArgs {
     /// Robots per tile kind in the terrain test.
     #[arg(long, default_value_t = 4)]
     pub terrain_robots: usize,
+    /// Also write a rerun recording of the first robot at every command, one after another
+    /// on its `sim_time` timeline, beside the report (`<report>.rrd`; view it with `rerun
+    /// <file>`). Needs the simulator and a build with the `rerun` feature
+    /// (`cargo run --release -p host-train --features rerun --bin hexapod -- eval ...`).
+    #[arg(long, conflicts_with = "suite")]
+    pub rerun: bool,
 }
 
 /// Results at one fixed command.
@@ -225,6 +235,9 @@ pub fn contact_mask(privileged: &[f32]) -> u8 {
 
 /// Runs `hexapod eval`.
 pub fn run(args: EvalArgs) -> anyhow::Result<()> {
+    if args.rerun {
+        require_rerun("eval")?;
+    }
     if let Some(suite) = &args.suite {
         return crate::cli::suite::run(&crate::cli::suite::SuiteOptions {
             suite: suite.clone(),
@@ -255,12 +268,22 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     if let Some(kind) = &args.env {
         cfg.env.kind = if kind == "fake" { EnvKind::Fake } else { EnvKind::Sim };
     }
-    let mut env = make_env(&cfg)?;
+    let mut env = PlayEnv::new(&cfg)?;
+    let mut recording = match (&env, args.rerun) {
+        (PlayEnv::Sim(sim), true) => Some(Recording::new(sim.robot_world(0))),
+        (PlayEnv::Other(_), true) => anyhow::bail!("--rerun records the simulator's robot, not the stand-in (env.kind = \"fake\")"),
+        (_, false) => None,
+    };
     let n = args.num_envs;
     let mut results = Vec::new();
     let (mut est_sq, mut est_n) = (0.0f64, 0usize);
-    for command in EVAL_COMMANDS {
-        let mut obs = env.reset();
+    for (c, command) in EVAL_COMMANDS.into_iter().enumerate() {
+        let t0_s = (c * args.steps) as f32 * POLICY_DT_S;
+        if let Some(rec) = &mut recording {
+            let [vx, vy, wz] = command;
+            rec.start_segment(t0_s, format!("command vx {vx} m/s, vy {vy} m/s, wz {wz} rad/s (robot 0)"));
+        }
+        let mut obs = env.env().reset();
         let mut fell = vec![false; n];
         let (mut lin_err, mut yaw_err, mut mean_v, mut samples) = (0.0f64, 0.0f64, [0.0f64; 3], 0usize);
         let (mut tripod, mut contact_samples) = (0usize, 0usize);
@@ -268,7 +291,17 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         for step in 0..args.steps {
             set_command(&mut obs.actor, command);
             let act = ppo.act(&obs, true)?;
-            let res = env.step(&act.actions);
+            if let (Some(rec), PlayEnv::Sim(sim)) = (&mut recording, &env) {
+                let p = &obs.privileged[..PRIVILEGED_DIM];
+                let measured = [
+                    p[PRIV_LIN_VEL.start] / LIN_VEL_SCALE,
+                    p[PRIV_LIN_VEL.start + 1] / LIN_VEL_SCALE,
+                    obs.amp[AMP_BASE_ANG_VEL.start + 2],
+                ];
+                let t_s = t0_s + step as f32 * POLICY_DT_S;
+                rec.record(sim.robot_world(0), &sim.contacts(0), t_s, command, measured, p[PRIV_BASE_HEIGHT]);
+            }
+            let res = env.env().step(&act.actions);
             for i in 0..n {
                 let p = &obs.privileged[i * PRIVILEGED_DIM..(i + 1) * PRIVILEGED_DIM];
                 if step >= SETTLE_STEPS {
@@ -373,6 +406,11 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     }
     std::fs::write(&out, serde_json::to_string_pretty(&report)?).with_context(|| format!("writing {}", out.display()))?;
     eprintln!("report: {}", out.display());
+    if let (Some(rec), PlayEnv::Sim(sim)) = (&recording, &env) {
+        let path = out.with_extension("rrd");
+        rec.save(&path, sim.terrain())?;
+        eprintln!("rerun recording: {}", path.display());
+    }
     Ok(())
 }
 

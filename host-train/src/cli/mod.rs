@@ -5,7 +5,11 @@ pub mod play;
 pub mod plot;
 pub mod pretrain;
 pub mod priors;
+pub mod recording;
 pub mod replay;
+#[cfg(feature = "rerun")]
+pub mod rerun_writer;
 pub mod suite;
+pub mod terrain_mesh;
 pub mod terrain_test;
 pub mod train;

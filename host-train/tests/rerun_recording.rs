@@ -23,8 +23,18 @@ fn out_dir(name: &str) -> PathBuf {
 /// The file's size after checking that it starts with rerun's RRD magic bytes.
 fn rrd_size(path: &Path) -> usize {
     let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    assert!(bytes.len() > RRD_FOURCC.len(), "{}: {} bytes", path.display(), bytes.len());
-    assert_eq!(bytes[..4], RRD_FOURCC, "{}: not an RRD file", path.display());
+    assert!(
+        bytes.len() > RRD_FOURCC.len(),
+        "{}: {} bytes",
+        path.display(),
+        bytes.len()
+    );
+    assert_eq!(
+        bytes[..4],
+        RRD_FOURCC,
+        "{}: not an RRD file",
+        path.display()
+    );
     bytes.len()
 }
 
@@ -53,8 +63,18 @@ fn play_writes_a_rerun_recording() {
 
 #[test]
 fn recording_on_stairs_carries_the_terrain() {
-    let terrain = TerrainConfig { tiles: true, rows: 2, columns: vec![TileKind::Flat, TileKind::StairsUp], ..Default::default() };
-    let config = EnvConfig { num_envs: 1, terrain, curriculum: false, ..Default::default() };
+    let terrain = TerrainConfig {
+        tiles: true,
+        rows: 2,
+        columns: vec![TileKind::Flat, TileKind::StairsUp],
+        ..Default::default()
+    };
+    let config = EnvConfig {
+        num_envs: 1,
+        terrain,
+        curriculum: false,
+        ..Default::default()
+    };
     let mut env = HexapodEnv::new(config).unwrap();
     env.set_terrain_tile(0, 1, 1);
     env.reset();
@@ -65,12 +85,23 @@ fn recording_on_stairs_carries_the_terrain() {
     for step in 0..20 {
         let t_s = step as f32 * POLICY_DT_S;
         let s = env.robot_state(0);
-        recording.record(env.robot_world(0), &env.contacts(0), t_s, [0.0; 3], [0.0; 3], s.base_pos_world_m[2]);
+        recording.record(
+            env.robot_world(0),
+            &env.contacts(0),
+            t_s,
+            [0.0; 3],
+            [0.0; 3],
+            s.base_pos_world_m[2],
+        );
         env.step(&actions);
     }
     // Standing on the tile: the feet carry its weight.
     let last = recording.steps.last().unwrap();
-    let stance = last.foot_force_world_n.iter().filter(|f| f[2] > host_sim::rewards::STANCE_FORCE_N).count();
+    let stance = last
+        .foot_force_world_n
+        .iter()
+        .filter(|f| f[2] > host_sim::rewards::STANCE_FORCE_N)
+        .count();
     assert!(stance >= 3, "{stance} feet down");
     let out = out_dir("stairs");
     std::fs::create_dir_all(&out).unwrap();

@@ -10,7 +10,8 @@ use host_sim::terrain::Terrain;
 use std::path::Path;
 
 /// The command that builds `hexapod` with rerun recordings.
-pub const BUILD_WITH_RERUN: &str = "cargo run --release -p host-train --features rerun --bin hexapod --";
+pub const BUILD_WITH_RERUN: &str =
+    "cargo run --release -p host-train --features rerun --bin hexapod --";
 
 /// Fails with how to get a build that writes rerun recordings, unless this is one.
 pub fn require_rerun(subcommand: &str) -> anyhow::Result<()> {
@@ -59,7 +60,11 @@ impl Recording {
     /// An empty recording of `robot`'s geometry.
     pub fn new(robot: &RobotWorld) -> Self {
         Self {
-            link_names: robot.link_poses().iter().map(|p| p.name.to_string()).collect(),
+            link_names: robot
+                .link_poses()
+                .iter()
+                .map(|p| p.name.to_string())
+                .collect(),
             shapes: robot.link_shapes(),
             steps: Vec::new(),
             segments: Vec::new(),
@@ -98,11 +103,28 @@ impl Recording {
     /// The planar box (x min, y min, x max, y max), m, that the base visits, widened by
     /// `margin_m`; `None` for an empty recording.
     pub fn footprint_m(&self, margin_m: f32) -> Option<[f32; 4]> {
-        let mut b = [f32::INFINITY, f32::INFINITY, f32::NEG_INFINITY, f32::NEG_INFINITY];
+        let mut b = [
+            f32::INFINITY,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NEG_INFINITY,
+        ];
         for p in self.steps.iter().filter_map(|s| s.link_pos_world_m.first()) {
-            b = [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])];
+            b = [
+                b[0].min(p[0]),
+                b[1].min(p[1]),
+                b[2].max(p[0]),
+                b[3].max(p[1]),
+            ];
         }
-        b[0].is_finite().then(|| [b[0] - margin_m, b[1] - margin_m, b[2] + margin_m, b[3] + margin_m])
+        b[0].is_finite().then(|| {
+            [
+                b[0] - margin_m,
+                b[1] - margin_m,
+                b[2] + margin_m,
+                b[3] + margin_m,
+            ]
+        })
     }
 
     /// Writes the recording as a rerun `.rrd` file, with the part of `terrain` around the

@@ -21,8 +21,8 @@ use host_sim::rewards::STANCE_FORCE_N;
 use host_sim::robot::LinkShapeKind;
 use host_sim::terrain::Terrain;
 use rerun::{
-    Arrows3D, Boxes3D, Capsules3D, Color, Cylinders3D, Ellipsoids3D, FillMode, Mesh3D, Points3D, RecordingStream, Scalars,
-    SeriesLines, TextLog, Transform3D, ViewCoordinates,
+    Arrows3D, Boxes3D, Capsules3D, Color, Cylinders3D, Ellipsoids3D, FillMode, Mesh3D, Points3D,
+    RecordingStream, Scalars, SeriesLines, TextLog, Transform3D, ViewCoordinates,
 };
 use std::path::Path;
 
@@ -32,9 +32,19 @@ const TERRAIN_MARGIN_M: f32 = 1.5;
 const FORCE_ARROW_M_PER_N: f32 = 0.001;
 /// Quaternion (x, y, z, w) turning a rerun cylinder's or capsule's z axis onto y (parry's
 /// cylinder axis): -90 deg about x.
-const Z_TO_Y: [f32; 4] = [-std::f32::consts::FRAC_1_SQRT_2, 0.0, 0.0, std::f32::consts::FRAC_1_SQRT_2];
+const Z_TO_Y: [f32; 4] = [
+    -std::f32::consts::FRAC_1_SQRT_2,
+    0.0,
+    0.0,
+    std::f32::consts::FRAC_1_SQRT_2,
+];
 /// Quaternion turning z onto x (the coxa's axis in its link frame): +90 deg about y.
-const Z_TO_X: [f32; 4] = [0.0, std::f32::consts::FRAC_1_SQRT_2, 0.0, std::f32::consts::FRAC_1_SQRT_2];
+const Z_TO_X: [f32; 4] = [
+    0.0,
+    std::f32::consts::FRAC_1_SQRT_2,
+    0.0,
+    std::f32::consts::FRAC_1_SQRT_2,
+];
 
 /// Writes `recording` to `path` (`.rrd`), with `terrain` around the robot's path.
 pub fn write_rrd(recording: &Recording, terrain: &Terrain, path: &Path) -> anyhow::Result<()> {
@@ -64,25 +74,40 @@ pub fn write_rrd(recording: &Recording, terrain: &Terrain, path: &Path) -> anyho
         }
         rec.log(
             "world/contacts/feet",
-            &Points3D::new(soles.iter().copied()).with_radii([0.015]).with_colors([Color::from_rgb(20, 170, 60)]),
+            &Points3D::new(soles.iter().copied())
+                .with_radii([0.015])
+                .with_colors([Color::from_rgb(20, 170, 60)]),
         )?;
         rec.log(
             "world/contacts/forces",
-            &Arrows3D::from_vectors(forces).with_origins(soles).with_colors([Color::from_rgb(20, 170, 60)]),
+            &Arrows3D::from_vectors(forces)
+                .with_origins(soles)
+                .with_colors([Color::from_rgb(20, 170, 60)]),
         )?;
         for (k, name) in ["vx_m_s", "vy_m_s", "wz_rad_s"].iter().enumerate() {
-            rec.log(format!("{name}/command"), &Scalars::single(step.command[k] as f64))?;
-            rec.log(format!("{name}/measured"), &Scalars::single(step.measured[k] as f64))?;
+            rec.log(
+                format!("{name}/command"),
+                &Scalars::single(step.command[k] as f64),
+            )?;
+            rec.log(
+                format!("{name}/measured"),
+                &Scalars::single(step.measured[k] as f64),
+            )?;
         }
         rec.log("base_height_m", &Scalars::single(step.base_height_m as f64))?;
     }
-    rec.flush_blocking().with_context(|| format!("writing {}", path.display()))?;
+    rec.flush_blocking()
+        .with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }
 
 /// What does not change: the axes, the ground, the robot's shapes on their links, the
 /// series' names and colours.
-fn log_static(rec: &RecordingStream, recording: &Recording, terrain: &Terrain) -> anyhow::Result<()> {
+fn log_static(
+    rec: &RecordingStream,
+    recording: &Recording,
+    terrain: &Terrain,
+) -> anyhow::Result<()> {
     rec.log_static("world", &ViewCoordinates::RIGHT_HAND_Z_UP())?;
     if let Some(area) = recording.footprint_m(TERRAIN_MARGIN_M) {
         let mesh = terrain_mesh(terrain, area);
@@ -95,7 +120,10 @@ fn log_static(rec: &RecordingStream, recording: &Recording, terrain: &Terrain) -
         )?;
     }
     let trunk = Color::from_rgb(90, 90, 90);
-    let colour = |link: &str| match LEG_NAMES.iter().position(|leg| link.starts_with(&format!("{leg}_"))) {
+    let colour = |link: &str| match LEG_NAMES
+        .iter()
+        .position(|leg| link.starts_with(&format!("{leg}_")))
+    {
         Some(i) if Leg::ALL[i].tripod() == Tripod::A => Color::from_rgb(210, 60, 50),
         Some(_) => Color::from_rgb(50, 90, 210),
         None => trunk,
@@ -113,7 +141,10 @@ fn log_static(rec: &RecordingStream, recording: &Recording, terrain: &Terrain) -
                     .with_fill_mode(FillMode::Solid)
                     .with_colors([color]),
             )?,
-            LinkShapeKind::Cylinder { half_height_m, radius_m } => rec.log_static(
+            LinkShapeKind::Cylinder {
+                half_height_m,
+                radius_m,
+            } => rec.log_static(
                 path,
                 &Cylinders3D::from_lengths_and_radii([2.0 * half_height_m], [radius_m])
                     .with_centers([centre])
@@ -129,7 +160,11 @@ fn log_static(rec: &RecordingStream, recording: &Recording, terrain: &Terrain) -
                 rec.log_static(
                     path,
                     &Capsules3D::from_lengths_and_radii([length], [radius_m])
-                        .with_translations([[centre[0] + start[0], centre[1] + start[1], centre[2] + start[2]]])
+                        .with_translations([[
+                            centre[0] + start[0],
+                            centre[1] + start[1],
+                            centre[2] + start[2],
+                        ]])
                         .with_quaternions([rerun::Quaternion::from_xyzw(quat_mul(q, quat_z_to(d)))])
                         .with_fill_mode(FillMode::Solid)
                         .with_colors([color]),
@@ -158,9 +193,14 @@ fn log_static(rec: &RecordingStream, recording: &Recording, terrain: &Terrain) -
     for name in ["vx_m_s", "vy_m_s", "wz_rad_s"] {
         rec.log_static(
             format!("{name}/command"),
-            &SeriesLines::new().with_names(["command"]).with_colors([Color::from_rgb(120, 120, 120)]),
+            &SeriesLines::new()
+                .with_names(["command"])
+                .with_colors([Color::from_rgb(120, 120, 120)]),
         )?;
-        rec.log_static(format!("{name}/measured"), &SeriesLines::new().with_names(["measured"]))?;
+        rec.log_static(
+            format!("{name}/measured"),
+            &SeriesLines::new().with_names(["measured"]),
+        )?;
     }
     Ok(())
 }

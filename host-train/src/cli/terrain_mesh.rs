@@ -40,7 +40,8 @@ pub fn terrain_mesh(terrain: &Terrain, area_m: [f32; 4]) -> TriangleMesh {
     let mut mesh = TriangleMesh::default();
     for ix in ix0..=ix1 {
         for iy in iy0..=iy1 {
-            mesh.positions_m.push([ix as f32 * cell, iy as f32 * cell, h(ix, iy)]);
+            mesh.positions_m
+                .push([ix as f32 * cell, iy as f32 * cell, h(ix, iy)]);
             // Central differences of the grid (one-sided at its edges).
             let (xa, xb) = (ix.saturating_sub(1), (ix + 1).min(terrain.nx - 1));
             let (ya, yb) = (iy.saturating_sub(1), (iy + 1).min(terrain.ny - 1));
@@ -53,7 +54,12 @@ pub fn terrain_mesh(terrain: &Terrain, area_m: [f32; 4]) -> TriangleMesh {
     let vertex = |i: usize, j: usize| (i * cols + j) as u32;
     for i in 0..rows - 1 {
         for j in 0..cols - 1 {
-            let (v00, v10, v01, v11) = (vertex(i, j), vertex(i + 1, j), vertex(i, j + 1), vertex(i + 1, j + 1));
+            let (v00, v10, v01, v11) = (
+                vertex(i, j),
+                vertex(i + 1, j),
+                vertex(i, j + 1),
+                vertex(i + 1, j + 1),
+            );
             mesh.triangles.push([v00, v10, v11]);
             mesh.triangles.push([v00, v11, v01]);
         }
@@ -79,17 +85,24 @@ mod tests {
     fn grid_mesh_carries_the_heights() {
         let cell = 0.1;
         let (nx, ny) = (20, 10);
-        let heights: Vec<f32> = (0..nx * ny).map(|k| if k / ny >= 10 { 0.15 } else { 0.0 }).collect();
+        let heights: Vec<f32> = (0..nx * ny)
+            .map(|k| if k / ny >= 10 { 0.15 } else { 0.0 })
+            .collect();
         let terrain = Terrain::from_heights(cell, nx, ny, heights);
         let mesh = terrain_mesh(&terrain, [0.25, 0.05, 1.42, 0.45]);
         // x from grid point 2 to 15, y from 0 to 5.
         assert_eq!(mesh.positions_m.len(), 14 * 6);
         assert_eq!(mesh.triangles.len(), 2 * 13 * 5);
         for p in &mesh.positions_m {
-            assert!((p[2] - terrain.height_at_m(p[0], p[1])).abs() < 1e-4, "{p:?}");
+            assert!(
+                (p[2] - terrain.height_at_m(p[0], p[1])).abs() < 1e-4,
+                "{p:?}"
+            );
         }
         for n in &mesh.normals {
-            assert!(((n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt() - 1.0).abs() < 1e-5 && n[2] > 0.0);
+            assert!(
+                ((n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt() - 1.0).abs() < 1e-5 && n[2] > 0.0
+            );
         }
         // Every triangle faces up (counter-clockwise seen from above).
         for t in &mesh.triangles {
@@ -98,6 +111,9 @@ mod tests {
             assert!(cross_z > 0.0);
         }
         // An area off the grid still gets one cell at its edge.
-        assert_eq!(terrain_mesh(&terrain, [5.0, 5.0, 6.0, 6.0]).triangles.len(), 2);
+        assert_eq!(
+            terrain_mesh(&terrain, [5.0, 5.0, 6.0, 6.0]).triangles.len(),
+            2
+        );
     }
 }

@@ -197,6 +197,11 @@ impl HexapodEnv {
         self.slots[i].state
     }
 
+    /// The simulated robot `i` (link poses and shapes for a 3D replay).
+    pub fn robot_world(&self, i: usize) -> &RobotWorld {
+        &self.slots[i].robot
+    }
+
     /// Contacts of robot `i` after the last step.
     pub fn contacts(&self, i: usize) -> ContactState {
         self.slots[i].contacts

@@ -85,6 +85,62 @@ pub fn joint_stop_torque_nm(j: usize, q_rad: f32, qdot_rad_s: f32) -> f32 {
     -JOINT_STOP_STIFFNESS_NM_PER_RAD * over - JOINT_STOP_DAMPING_NMS_PER_RAD * qdot_rad_s
 }
 
+/// The world pose of one link of the robot.
+#[derive(Clone, Copy, Debug)]
+pub struct LinkPose<'a> {
+    /// The URDF link name (`base`, `rf_coxa`, `rf_thigh`, `rf_shank`, ...).
+    pub name: &'a str,
+    /// Position of the link frame, world, m.
+    pub pos_world_m: [f32; 3],
+    /// Orientation of the link frame, world, quaternion (x, y, z, w).
+    pub quat_world_xyzw: [f32; 4],
+}
+
+/// The geometry of a collision shape, in its own frame (parry's conventions).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LinkShapeKind {
+    /// A box centred on its frame's origin.
+    Cuboid {
+        /// Half the side lengths along x, y, z, m.
+        half_extents_m: [f32; 3],
+    },
+    /// A cylinder centred on its frame's origin, its axis along y.
+    Cylinder {
+        /// Half the length along y, m.
+        half_height_m: f32,
+        /// Radius, m.
+        radius_m: f32,
+    },
+    /// A capsule around the segment from `a_m` to `b_m`.
+    Capsule {
+        /// One end of the axis, m.
+        a_m: [f32; 3],
+        /// The other end of the axis, m.
+        b_m: [f32; 3],
+        /// Radius, m.
+        radius_m: f32,
+    },
+    /// A sphere centred on its frame's origin.
+    Ball {
+        /// Radius, m.
+        radius_m: f32,
+    },
+}
+
+/// A collision shape of the robot as the simulator has it (solid or probe), placed on its
+/// link: what a 3D replay draws.
+#[derive(Clone, Copy, Debug)]
+pub struct LinkShape {
+    /// Index of the link in [`RobotWorld::link_poses`].
+    pub link: usize,
+    /// Position of the shape's frame in the link frame, m.
+    pub pos_link_m: [f32; 3],
+    /// Orientation of the shape's frame in the link frame, quaternion (x, y, z, w).
+    pub quat_link_xyzw: [f32; 4],
+    /// The shape.
+    pub kind: LinkShapeKind,
+}
+
 /// A link shape kept out of the physics and tested against the ground on demand.
 struct Probe {
     body: RigidBodyHandle,
@@ -106,6 +162,8 @@ pub struct RobotWorld {
     probes: Vec<Probe>,
     ground: ColliderHandle,
     link_bodies: Vec<RigidBodyHandle>,
+    /// URDF link names, in the order of `link_bodies`.
+    link_names: Vec<String>,
     nominal_mass: Vec<MassProperties>,
     /// Drive parameters (randomized per episode in training).
     pub drives: DriveParams,
@@ -335,6 +393,7 @@ impl RobotWorld {
             probes,
             ground,
             link_bodies,
+            link_names: model.robot.links.iter().map(|l| l.name.clone()).collect(),
             nominal_mass,
             drives: DriveParams::default(),
             torque_nm: [0.0; NUM_JOINTS],
@@ -543,6 +602,57 @@ impl RobotWorld {
         }
     }
 
+    /// World pose of every link, in URDF order (the order of [`LinkShape::link`]), with the
+    /// link names.
+    pub fn link_poses(&self) -> Vec<LinkPose<'_>> {
+        self.link_bodies
+            .iter()
+            .zip(&self.link_names)
+            .map(|(h, name)| {
+                let pose = self.world.bodies[*h].position();
+                let (p, r) = (pose.translation, pose.rotation);
+                LinkPose { name, pos_world_m: [p.x, p.y, p.z], quat_world_xyzw: [r.x, r.y, r.z, r.w] }
+            })
+            .collect()
+    }
+
+    /// The robot's collision shapes on their links: the trunk box, the thigh and shank
+    /// probes, the foot spheres (the coxae have none). Shapes of a kind other than
+    /// [`LinkShapeKind`]'s are left out (the URDF has none).
+    pub fn link_shapes(&self) -> Vec<LinkShape> {
+        let solid = self.feet.iter().map(|h| {
+            let c = &self.world.colliders[*h];
+            (c.parent().unwrap_or(self.base), c.position_wrt_parent().copied().unwrap_or(Pose::IDENTITY), c.shape())
+        });
+        let probes = self.probes.iter().map(|p| (p.body, p.local_pose, &*p.shape));
+        probes
+            .chain(solid)
+            .filter_map(|(body, pose, shape)| {
+                let link = self.link_bodies.iter().position(|h| *h == body)?;
+                let v = |v: Vector| [v.x, v.y, v.z];
+                let kind = if let Some(b) = shape.as_cuboid() {
+                    LinkShapeKind::Cuboid { half_extents_m: v(b.half_extents) }
+                } else if let Some(c) = shape.as_cylinder() {
+                    LinkShapeKind::Cylinder { half_height_m: c.half_height, radius_m: c.radius }
+                } else if let Some(c) = shape.as_capsule() {
+                    LinkShapeKind::Capsule { a_m: v(c.segment.a), b_m: v(c.segment.b), radius_m: c.radius }
+                } else {
+                    LinkShapeKind::Ball { radius_m: shape.as_ball()?.radius }
+                };
+                let r = pose.rotation;
+                Some(LinkShape { link, pos_link_m: v(pose.translation), quat_link_xyzw: [r.x, r.y, r.z, r.w], kind })
+            })
+            .collect()
+    }
+
+    /// Centre of each foot sphere, world, m.
+    pub fn foot_positions_world_m(&self) -> [[f32; 3]; NUM_LEGS] {
+        self.feet.map(|h| {
+            let p = self.world.colliders[h].translation();
+            [p.x, p.y, p.z]
+        })
+    }
+
     /// Number of links (URDF order), for per-link randomization.
     pub fn num_links(&self) -> usize {
         self.link_bodies.len()
@@ -620,6 +730,33 @@ mod tests {
             let sim = r.world.colliders[r.feet[leg]].translation();
             let core = base + rot * Vector::from(feet[leg]);
             assert!((sim - core).length() < 1e-4, "leg {leg}: {sim:?} vs {core:?}");
+        }
+    }
+
+    #[test]
+    fn link_poses_and_shapes_are_the_simulated_ones() {
+        let mut r = flat_robot();
+        r.step(&Q0_RAD);
+        let poses = r.link_poses();
+        assert_eq!(poses.len(), 1 + 3 * NUM_LEGS);
+        assert_eq!(poses[0].name, "base");
+        let s = r.state();
+        assert_eq!(poses[0].pos_world_m, s.base_pos_world_m);
+        let shapes = r.link_shapes();
+        // Trunk, thigh and shank cylinders, foot spheres.
+        assert_eq!(shapes.len(), 1 + 3 * NUM_LEGS);
+        let [hx, hy, hz] = hexapod_core::robot::TRUNK_SIZE_M.map(|x| x / 2.0);
+        assert!(shapes.iter().any(|s| poses[s.link].name == "base" && s.kind == LinkShapeKind::Cuboid { half_extents_m: [hx, hy, hz] }));
+        let feet = r.foot_positions_world_m();
+        for (leg, name) in hexapod_core::robot::LEG_NAMES.iter().enumerate() {
+            let shank = poses.iter().position(|p| p.name == format!("{name}_shank")).unwrap();
+            let foot = shapes.iter().find(|s| s.link == shank && matches!(s.kind, LinkShapeKind::Ball { .. })).unwrap();
+            // The foot sphere placed by its link's world pose lands on the collider's centre.
+            let p = &poses[shank];
+            let q = p.quat_world_xyzw;
+            let world = Vector::from(p.pos_world_m) + Rotation::from_xyzw(q[0], q[1], q[2], q[3]) * Vector::from(foot.pos_link_m);
+            assert!((world - Vector::from(feet[leg])).length() < 1e-5, "leg {leg}");
+            assert!(shapes.iter().any(|s| s.link == shank && matches!(s.kind, LinkShapeKind::Cylinder { .. })));
         }
     }
 

@@ -28,6 +28,7 @@ fn the_shipped_policy_walks_in_mujoco() {
         [0.3, 0.0, 0.0],
         100,
         &mut EstimatorError::default(),
+        None,
     )
     .unwrap();
     eprintln!("MuJoCo {}: {r:?}", env.mujoco_version());

@@ -2,17 +2,22 @@
 //! rate under the environment's random pushes, a tripod score (fraction of time the stance
 //! set is exactly one of the two tripods), and a push test (0.5 m/s shoves every 4 s for a
 //! 20 s episode), for a checkpoint. `--suite paper` runs the paper's experiments instead,
-//! for one or several checkpoints ([`crate::cli::suite`]).
+//! for one or several checkpoints ([`crate::cli::suite`]). With `--rerun` (a build with the
+//! `rerun` feature), a rerun recording of the first robot at every command.
 
 use crate::algo::ppo::Ppo;
 use crate::checkpoint::load_for_inference;
+use crate::cli::play::PlayEnv;
+use crate::cli::recording::{require_rerun, Recording};
 use crate::cli::terrain_walk::{terrain_walk, TerrainWalkResult};
 use crate::config::EnvKind;
-use crate::env::make_env;
 use anyhow::Context;
 use clap::Args;
 use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_STATE_DIM};
-use hexapod_core::obs::{CONTACT_FORCE_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_CONTACT_FORCES, PRIV_LIN_VEL};
+use hexapod_core::obs::{
+    CONTACT_FORCE_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_BASE_HEIGHT, PRIV_CONTACT_FORCES, PRIV_LIN_VEL,
+};
+use hexapod_core::timing::POLICY_DT_S;
 use hexapod_core::robot::{NUM_LEGS, TRIPOD_A_MASK, TRIPOD_B_MASK};
 use host_sim::mujoco_env::MujocoEnv;
 use host_sim::vec_env::{Observations, StepResult, VecEnv};
@@ -70,6 +75,12 @@ pub struct EvalArgs {
     /// Robots per tile kind in the terrain test.
     #[arg(long, default_value_t = 4)]
     pub terrain_robots: usize,
+    /// Also write a rerun recording of the first robot at every command, one after another
+    /// on its `sim_time` timeline, beside the report (`<report>.rrd`; view it with `rerun
+    /// <file>`). Needs the simulator and a build with the `rerun` feature
+    /// (`cargo run --release -p host-train --features rerun --bin hexapod -- eval ...`).
+    #[arg(long, conflicts_with = "suite")]
+    pub rerun: bool,
 }
 
 /// Results at one fixed command.
@@ -238,6 +249,34 @@ pub trait TrackEnv {
     fn reset(&mut self) -> anyhow::Result<Observations>;
     /// One policy step.
     fn step(&mut self, actions: &[f32]) -> anyhow::Result<StepResult>;
+    /// The rapier simulator behind it, if it is one (what a recording draws).
+    fn sim(&self) -> Option<&host_sim::env::HexapodEnv> {
+        None
+    }
+}
+
+impl TrackEnv for PlayEnv {
+    fn num_envs(&self) -> usize {
+        match self {
+            PlayEnv::Sim(env) => VecEnv::num_envs(env),
+            PlayEnv::Other(env) => env.num_envs(),
+        }
+    }
+    fn set_command(&mut self, i: usize, command: [f32; 3]) {
+        self.env().set_command(i, command)
+    }
+    fn reset(&mut self) -> anyhow::Result<Observations> {
+        Ok(self.env().reset())
+    }
+    fn step(&mut self, actions: &[f32]) -> anyhow::Result<StepResult> {
+        Ok(self.env().step(actions))
+    }
+    fn sim(&self) -> Option<&host_sim::env::HexapodEnv> {
+        match self {
+            PlayEnv::Sim(env) => Some(env),
+            PlayEnv::Other(_) => None,
+        }
+    }
 }
 
 impl TrackEnv for Box<dyn VecEnv> {
@@ -297,6 +336,7 @@ pub fn track_command(
     command: [f32; 3],
     steps: usize,
     estimator: &mut EstimatorError,
+    mut recording: Option<(&mut Recording, f32)>,
 ) -> anyhow::Result<CommandResult> {
     let n = env.num_envs();
     for i in 0..n {
@@ -309,6 +349,16 @@ pub fn track_command(
     let mut feet_down = [0usize; 7];
     for step in 0..steps {
         let act = ppo.act(&obs, true)?;
+        if let (Some((rec, t0_s)), Some(sim)) = (recording.as_mut(), env.sim()) {
+            let p = &obs.privileged[..PRIVILEGED_DIM];
+            let measured = [
+                p[PRIV_LIN_VEL.start] / LIN_VEL_SCALE,
+                p[PRIV_LIN_VEL.start + 1] / LIN_VEL_SCALE,
+                obs.amp[AMP_BASE_ANG_VEL.start + 2],
+            ];
+            let t_s = *t0_s + step as f32 * POLICY_DT_S;
+            rec.record(sim.robot_world(0), &sim.contacts(0), t_s, command, measured, p[PRIV_BASE_HEIGHT]);
+        }
         let res = env.step(&act.actions)?;
         for i in 0..n {
             let p = &obs.privileged[i * PRIVILEGED_DIM..(i + 1) * PRIVILEGED_DIM];
@@ -380,6 +430,9 @@ pub fn table_row(r: &CommandResult) -> String {
 
 /// Runs `hexapod eval`.
 pub fn run(args: EvalArgs) -> anyhow::Result<()> {
+    if args.rerun {
+        require_rerun("eval")?;
+    }
     if let Some(suite) = &args.suite {
         return crate::cli::suite::run(&crate::cli::suite::SuiteOptions {
             suite: suite.clone(),
@@ -410,12 +463,23 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     if let Some(kind) = &args.env {
         cfg.env.kind = if kind == "fake" { EnvKind::Fake } else { EnvKind::Sim };
     }
-    let mut env = make_env(&cfg)?;
+    let mut env = PlayEnv::new(&cfg)?;
+    let mut recording = match (&env, args.rerun) {
+        (PlayEnv::Sim(sim), true) => Some(Recording::new(sim.robot_world(0))),
+        (PlayEnv::Other(_), true) => anyhow::bail!("--rerun records the simulator's robot, not the stand-in (env.kind = \"fake\")"),
+        (_, false) => None,
+    };
     let n = args.num_envs;
     let mut results = Vec::new();
     let mut estimator = EstimatorError::default();
-    for command in EVAL_COMMANDS {
-        results.push(track_command(&mut env, &mut ppo, command, args.steps, &mut estimator)?);
+    for (c, command) in EVAL_COMMANDS.into_iter().enumerate() {
+        let t0_s = (c * args.steps) as f32 * POLICY_DT_S;
+        if let Some(rec) = &mut recording {
+            let [vx, vy, wz] = command;
+            rec.start_segment(t0_s, format!("command vx {vx} m/s, vy {vy} m/s, wz {wz} rad/s (robot 0)"));
+        }
+        let segment = recording.as_mut().map(|rec| (rec, t0_s));
+        results.push(track_command(&mut env, &mut ppo, command, args.steps, &mut estimator, segment)?);
     }
     let m = results.len() as f64;
     let push = if cfg.env.kind == EnvKind::Sim { Some(push_test(&cfg, &mut ppo, n)?) } else { None };
@@ -464,6 +528,11 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     }
     std::fs::write(&out, serde_json::to_string_pretty(&report)?).with_context(|| format!("writing {}", out.display()))?;
     eprintln!("report: {}", out.display());
+    if let (Some(rec), PlayEnv::Sim(sim)) = (&recording, &env) {
+        let path = out.with_extension("rrd");
+        rec.save(&path, sim.terrain())?;
+        eprintln!("rerun recording: {}", path.display());
+    }
     Ok(())
 }
 

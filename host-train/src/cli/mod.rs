@@ -5,9 +5,13 @@ pub mod play;
 pub mod plot;
 pub mod pretrain;
 pub mod priors;
+pub mod recording;
 pub mod replay_gif;
+#[cfg(feature = "rerun")]
+pub mod rerun_writer;
 pub mod sim2sim;
 pub mod suite;
 pub mod sweep;
+pub mod terrain_mesh;
 pub mod terrain_walk;
 pub mod train;

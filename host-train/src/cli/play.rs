@@ -1,10 +1,12 @@
 //! `hexapod play`: runs a checkpoint's policy (deterministic) and writes the trajectory
 //! (CSV), plots, and an animated 3D replay (GIF) of the first robot, on the checkpoint's
-//! ground or on one tile of the terrain grid (`--tile StairsUp --level 5`).
+//! ground or on one tile of the terrain grid (`--tile StairsUp --level 5`); with `--rerun`
+//! (a build with the `rerun` feature) also a rerun recording to scrub (`replay.rrd`).
 
 use crate::checkpoint::load_for_inference;
 use crate::cli::replay_gif::{render_replay, ReplayFrame};
 use crate::cli::eval::{contact_mask, SETTLE_STEPS};
+use crate::cli::recording::{require_rerun, Recording};
 use crate::config::EnvKind;
 use crate::env::make_env;
 use anyhow::Context;
@@ -54,17 +56,32 @@ pub struct PlayArgs {
     /// Terrain row (difficulty) of `--tile`; default the hardest.
     #[arg(long, requires = "tile")]
     pub level: Option<usize>,
+    /// Also write `replay.rrd`, a rerun recording to scrub in 3D (`rerun replay.rrd`): the
+    /// links, the ground, the foot forces and the velocity against the command on a
+    /// `sim_time` timeline. Needs the simulator and a build with the `rerun` feature
+    /// (`cargo run --release -p host-train --features rerun --bin hexapod -- play ...`).
+    #[arg(long)]
+    pub rerun: bool,
 }
 
-/// The environment `play` drives: the simulator (with the robot's world pose and the
-/// ground for the replay) or the trainer's stand-in.
-enum PlayEnv {
+/// The environment `play` and `eval` drive: the simulator (with the robot's world pose and
+/// the ground for the replays) or the trainer's stand-in.
+pub(crate) enum PlayEnv {
     Sim(HexapodEnv),
     Other(Box<dyn VecEnv>),
 }
 
 impl PlayEnv {
-    fn env(&mut self) -> &mut dyn VecEnv {
+    /// The environment of `cfg`.
+    pub(crate) fn new(cfg: &crate::config::TrainConfig) -> anyhow::Result<Self> {
+        Ok(match cfg.env.kind {
+            EnvKind::Sim => PlayEnv::Sim(HexapodEnv::new(cfg.resolved_sim())?),
+            _ => PlayEnv::Other(make_env(cfg)?),
+        })
+    }
+
+    /// The environment as a vectorized one.
+    pub(crate) fn env(&mut self) -> &mut dyn VecEnv {
         match self {
             PlayEnv::Sim(env) => env,
             PlayEnv::Other(env) => env.as_mut(),
@@ -103,6 +120,9 @@ fn place_on_tile(env: &mut HexapodEnv, tile: &str, level: Option<usize>) -> anyh
 
 /// Runs `hexapod play`.
 pub fn run(args: PlayArgs) -> anyhow::Result<()> {
+    if args.rerun {
+        require_rerun("play")?;
+    }
     let checkpoint = crate::checkpoint::resolve_dir(&args.checkpoint)?;
     let (mut cfg, mut ppo) = load_for_inference(&checkpoint)?;
     cfg.env.num_envs = 1;
@@ -133,6 +153,11 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
             anyhow::ensure!(args.tile.is_none(), "--tile needs the simulator (env.kind = \"sim\")");
             PlayEnv::Other(make_env(&cfg)?)
         }
+    };
+    let mut recording = match (&play_env, args.rerun) {
+        (PlayEnv::Sim(env), true) => Some(Recording::new(env.robot_world(0))),
+        (PlayEnv::Other(_), true) => anyhow::bail!("--rerun records the simulator's robot, not the stand-in (env.kind = \"fake\")"),
+        (_, false) => None,
     };
     let command = match args.command.as_slice() {
         [vx, vy, wz] => Some([*vx, *vy, *wz]),
@@ -189,6 +214,9 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
                 ([x, y, p[PRIV_BASE_HEIGHT]], quat_from_yaw(yaw))
             }
         };
+        if let (Some(rec), PlayEnv::Sim(env)) = (&mut recording, &play_env) {
+            rec.record(env.robot_world(0), &env.contacts(0), t, [cmd[0], cmd[1], cmd[2]], v, p[PRIV_BASE_HEIGHT]);
+        }
         let res = play_env.env().step(&act.actions);
         time_s.push(t);
         stance_masks.push(contact_mask(p));
@@ -243,7 +271,15 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
         };
         render_replay(&out.join("replay.gif"), &frames, &ground).map_err(anyhow::Error::msg)?;
     }
-    eprintln!("wrote {} (trajectory.csv, plots{})", out.display(), if args.no_replay { "" } else { ", replay.gif" });
+    if let (Some(rec), PlayEnv::Sim(env)) = (&recording, &play_env) {
+        rec.save(&out.join("replay.rrd"), env.terrain())?;
+    }
+    eprintln!(
+        "wrote {} (trajectory.csv, plots{}{})",
+        out.display(),
+        if args.no_replay { "" } else { ", replay.gif" },
+        if recording.is_some() { ", replay.rrd" } else { "" }
+    );
     if let (Some(c), true) = (command, summary.samples > 0) {
         let n = summary.samples as f64;
         let mean = summary.sum_v.map(|x| x / n);

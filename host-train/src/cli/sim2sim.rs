@@ -166,6 +166,7 @@ pub fn run(args: Sim2SimArgs) -> anyhow::Result<()> {
             command,
             args.steps,
             &mut rapier_est,
+            None,
         )?);
         mujoco_rows.push(track_command(
             &mut mujoco,
@@ -173,6 +174,7 @@ pub fn run(args: Sim2SimArgs) -> anyhow::Result<()> {
             command,
             args.steps,
             &mut mujoco_est,
+            None,
         )?);
     }
     let report = Sim2SimReport {

@@ -57,7 +57,7 @@ fn micromath_against_libm() {
     });
     let sqrt_quat = max_dev(n, 0.999, 1.001, |x| (Micromath::sqrt(x), Libm::sqrt(x)));
     // atan2 over the circle (the alignment's roll and pitch, the IK's yaw and thigh).
-    let atan2 = max_dev(n, -3.14159, 3.14159, |a| {
+    let atan2 = max_dev(n, -std::f32::consts::PI, std::f32::consts::PI, |a| {
         let (y, x) = (a.sin(), a.cos());
         (Micromath::atan2(y, x), Libm::atan2(y, x))
     });

@@ -596,7 +596,7 @@ mod tests {
             bus.send_from_drive(&CanFrame::data_frame(id, &[0; 6]).unwrap());
         }
         let order: Vec<u16> = (0..3)
-            .map(|_| {
+            .flat_map(|_| {
                 bus.set_time(bus.now_us + 1_000);
                 let mut ids = Vec::new();
                 while let Some(f) = bus.try_receive() {
@@ -604,7 +604,6 @@ mod tests {
                 }
                 ids
             })
-            .flatten()
             .collect();
         assert_eq!(order, vec![0x181, 0x182, 0x283]);
         assert_eq!(bus.stats.frames, 3);

@@ -229,7 +229,9 @@ pub struct Eds {
     pub entries: BTreeMap<(u16, u8), Entry>,
 }
 
-/// Parses a number as an EDS writes it: decimal, `0x` hex, negative, `$NODEID+x`.
+/// Parses a number as an EDS writes it: decimal, `0x` hex, negative, `$NODEID+x`; `Err(())`
+/// for anything else (the caller names the entry).
+#[allow(clippy::result_unit_err)]
 pub fn parse_value(s: &str, node_id: u8) -> Result<u32, ()> {
     let s = s.trim();
     if s.is_empty() {

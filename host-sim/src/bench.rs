@@ -43,7 +43,10 @@ pub struct BenchArgs {
 /// CPU time of the calling thread, s: unlike wall time, it does not count the time other
 /// processes hold the core, so rates stay comparable on a shared machine.
 fn thread_cpu_s() -> f64 {
-    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
     // SAFETY: `ts` is a valid, writable timespec; the clock id is a constant Linux supports.
     unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
     ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
@@ -55,7 +58,12 @@ struct SingleResult {
     upright: bool,
 }
 
-fn time_single(ground: rapier3d::prelude::Collider, spawn_z: f32, steps: usize, iterations: usize) -> anyhow::Result<SingleResult> {
+fn time_single(
+    ground: rapier3d::prelude::Collider,
+    spawn_z: f32,
+    steps: usize,
+    iterations: usize,
+) -> anyhow::Result<SingleResult> {
     let model = UrdfModel::load(&default_urdf_path())?;
     let mut robot = RobotWorld::new(&model, ground, iterations)?;
     robot.reset([0.0, 0.0, spawn_z], [0.0, 0.0, 0.0, 1.0], &Q0_RAD);
@@ -71,17 +79,29 @@ fn time_single(ground: rapier3d::prelude::Collider, spawn_z: f32, steps: usize, 
     }
     let elapsed = thread_cpu_s() - start_cpu_s;
     let s = robot.state();
-    let upright = s.base_quat_xyzw[0].abs() < 0.2 && s.base_quat_xyzw[1].abs() < 0.2 && s.base_pos_world_m[2] - spawn_z > -0.15;
-    Ok(SingleResult { steps_per_s: steps as f64 / elapsed, contacts: contacts as f64 / steps as f64, upright })
+    let upright = s.base_quat_xyzw[0].abs() < 0.2
+        && s.base_quat_xyzw[1].abs() < 0.2
+        && s.base_pos_world_m[2] - spawn_z > -0.15;
+    Ok(SingleResult {
+        steps_per_s: steps as f64 / elapsed,
+        contacts: contacts as f64 / steps as f64,
+        upright,
+    })
 }
 
 fn time_env(args: &BenchArgs, terrain: bool) -> anyhow::Result<f64> {
-    let mut config = EnvConfig { num_envs: args.envs, solver_iterations: args.solver_iterations, ..Default::default() };
+    let mut config = EnvConfig {
+        num_envs: args.envs,
+        solver_iterations: args.solver_iterations,
+        ..Default::default()
+    };
     if terrain {
         config.terrain.tiles = true;
         config.terrain.rows = 5;
     }
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(args.threads).build()?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads)
+        .build()?;
     let mut env = HexapodEnv::new(config)?;
     env.reset();
     let gait = reference_gait();
@@ -92,7 +112,12 @@ fn time_env(args: &BenchArgs, terrain: bool) -> anyhow::Result<f64> {
         let start = Instant::now();
         for k in 0..args.env_steps {
             let q = gait.joint_targets((k * DECIMATION) as f32 * PHYSICS_DT_S);
-            let a: Vec<f32> = (0..args.envs).flat_map(|_| (0..NUM_JOINTS).map(|j| (q[j] - Q0_RAD[j]) / hexapod_core::timing::ACTION_SCALE_RAD)).collect();
+            let a: Vec<f32> = (0..args.envs)
+                .flat_map(|_| {
+                    (0..NUM_JOINTS)
+                        .map(|j| (q[j] - Q0_RAD[j]) / hexapod_core::timing::ACTION_SCALE_RAD)
+                })
+                .collect();
             env.step(&a);
         }
         Ok(start)
@@ -118,12 +143,24 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let [cx, cy] = rough.tile_center_m(0, 0);
     let mut rough_ground = rough.collider();
     // Centre the tile at the origin, where the robot stands.
-    rough_ground.set_translation(rough_ground.translation() - rapier3d::prelude::Vector::new(cx, cy, 0.0));
+    rough_ground
+        .set_translation(rough_ground.translation() - rapier3d::prelude::Vector::new(cx, cy, 0.0));
     let z_rough = SPAWN_HEIGHT_M + rough.height_at_m(cx, cy);
-    eprintln!("[bench] rapier, 1 robot, 1 thread, {} physics steps per case ...", args.steps);
-    let flat = time_single(flat_ground, SPAWN_HEIGHT_M, args.steps, args.solver_iterations)?;
+    eprintln!(
+        "[bench] rapier, 1 robot, 1 thread, {} physics steps per case ...",
+        args.steps
+    );
+    let flat = time_single(
+        flat_ground,
+        SPAWN_HEIGHT_M,
+        args.steps,
+        args.solver_iterations,
+    )?;
     let terr = time_single(rough_ground, z_rough, args.steps, args.solver_iterations)?;
-    eprintln!("[bench] rapier env, {} robots, {} threads ...", args.envs, args.threads);
+    eprintln!(
+        "[bench] rapier env, {} robots, {} threads ...",
+        args.envs, args.threads
+    );
     let env_flat = time_env(args, false)?;
     let env_terrain = time_env(args, true)?;
     let peer = if args.no_mujoco {
@@ -134,20 +171,39 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     };
     println!("| case | rapier (host-sim) | MuJoCo | ratio rapier/MuJoCo |");
     println!("|---|---|---|---|");
-    let row = |name: &str, ours: &SingleResult, theirs: Option<(f64, f64)>| match theirs {
+    let row = |name: &str, ours: &SingleResult, theirs: Option<(f64, f64)>| {
+        match theirs {
         Some((sps, contacts)) => println!(
             "| {name} | {:.0} steps/s ({:.1} contacts, upright: {}) | {:.0} steps/s ({:.1} contacts) | {:.2}x |",
             ours.steps_per_s, ours.contacts, ours.upright, sps, contacts, ours.steps_per_s / sps
         ),
         None => println!("| {name} | {:.0} steps/s ({:.1} contacts, upright: {}) | - | - |", ours.steps_per_s, ours.contacts, ours.upright),
+    }
     };
     let p = peer.as_ref();
-    row("physics, flat, 1 robot, 1 thread", &flat, p.and_then(|p| Some((p.flat_steps_per_s?, p.flat_contacts?))));
-    row("physics, rough heightfield, 1 robot, 1 thread", &terr, p.and_then(|p| Some((p.terrain_steps_per_s?, p.terrain_contacts?))));
-    println!("| env, flat, {} robots, {} threads | {:.0} env steps/s ({:.0} physics steps/s) | | |", args.envs, args.threads, env_flat, env_flat * DECIMATION as f64);
+    row(
+        "physics, flat, 1 robot, 1 thread",
+        &flat,
+        p.and_then(|p| Some((p.flat_steps_per_s?, p.flat_contacts?))),
+    );
+    row(
+        "physics, rough heightfield, 1 robot, 1 thread",
+        &terr,
+        p.and_then(|p| Some((p.terrain_steps_per_s?, p.terrain_contacts?))),
+    );
+    println!(
+        "| env, flat, {} robots, {} threads | {:.0} env steps/s ({:.0} physics steps/s) | | |",
+        args.envs,
+        args.threads,
+        env_flat,
+        env_flat * DECIMATION as f64
+    );
     println!("| env, tile terrain, {} robots, {} threads | {:.0} env steps/s ({:.0} physics steps/s) | | |", args.envs, args.threads, env_terrain, env_terrain * DECIMATION as f64);
     if let Some(p) = p {
-        println!("\nMuJoCo {} ; rapier solver iterations {} ; dt {} s", p.mujoco_version, args.solver_iterations, PHYSICS_DT_S);
+        println!(
+            "\nMuJoCo {} ; rapier solver iterations {} ; dt {} s",
+            p.mujoco_version, args.solver_iterations, PHYSICS_DT_S
+        );
     }
     Ok(())
 }

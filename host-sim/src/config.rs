@@ -87,7 +87,11 @@ pub struct PushConfig {
 
 impl Default for PushConfig {
     fn default() -> Self {
-        Self { enabled: true, interval_s: 8.0, max_vel_xy_m_s: 0.5 }
+        Self {
+            enabled: true,
+            interval_s: 8.0,
+            max_vel_xy_m_s: 0.5,
+        }
     }
 }
 
@@ -182,15 +186,19 @@ pub enum ConfigError {
 impl EnvConfig {
     /// Reads a config from a TOML file and validates it.
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| ConfigError::Io { path: path.display().to_string(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
         Self::from_toml(&path.display().to_string(), &text)
     }
 
     /// Parses and validates TOML text; `origin` names it in errors.
     pub fn from_toml(origin: &str, text: &str) -> Result<Self, ConfigError> {
-        let config: Self = toml::from_str(text)
-            .map_err(|e| ConfigError::Parse { path: origin.into(), message: e.to_string() })?;
+        let config: Self = toml::from_str(text).map_err(|e| ConfigError::Parse {
+            path: origin.into(),
+            message: e.to_string(),
+        })?;
         config.validate(origin)?;
         Ok(config)
     }
@@ -205,26 +213,47 @@ impl EnvConfig {
         if self.num_envs == 0 {
             return Err(bad("num_envs", "must be at least 1".into()));
         }
-        if !(self.episode_length_s > 0.0) {
+        if self.episode_length_s.is_nan() || self.episode_length_s <= 0.0 {
             return Err(bad("episode_length_s", "must be positive".into()));
         }
         if self.solver_iterations == 0 {
             return Err(bad("solver_iterations", "must be at least 1".into()));
         }
         if !(0.0..=1.0).contains(&self.reference_init_probability) {
-            return Err(bad("reference_init_probability", format!("{} is not a probability in [0, 1]", self.reference_init_probability)));
+            return Err(bad(
+                "reference_init_probability",
+                format!(
+                    "{} is not a probability in [0, 1]",
+                    self.reference_init_probability
+                ),
+            ));
         }
         let ranges = [
             ("commands.lin_vel_x_m_s", self.commands.lin_vel_x_m_s),
             ("commands.lin_vel_y_m_s", self.commands.lin_vel_y_m_s),
             ("commands.ang_vel_z_rad_s", self.commands.ang_vel_z_rad_s),
-            ("randomization.stiffness_factor", self.randomization.stiffness_factor),
-            ("randomization.damping_factor", self.randomization.damping_factor),
-            ("randomization.initial_joint_pos_factor", self.randomization.initial_joint_pos_factor),
-            ("randomization.link_mass_factor", self.randomization.link_mass_factor),
+            (
+                "randomization.stiffness_factor",
+                self.randomization.stiffness_factor,
+            ),
+            (
+                "randomization.damping_factor",
+                self.randomization.damping_factor,
+            ),
+            (
+                "randomization.initial_joint_pos_factor",
+                self.randomization.initial_joint_pos_factor,
+            ),
+            (
+                "randomization.link_mass_factor",
+                self.randomization.link_mass_factor,
+            ),
             ("randomization.payload_kg", self.randomization.payload_kg),
             ("randomization.friction", self.randomization.friction),
-            ("randomization.motor_strength", self.randomization.motor_strength),
+            (
+                "randomization.motor_strength",
+                self.randomization.motor_strength,
+            ),
         ];
         for (field, [lo, hi]) in ranges {
             if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
@@ -232,12 +261,18 @@ impl EnvConfig {
             }
         }
         if self.randomization.damping_factor[0] <= 0.0 || self.randomization.friction[0] < 0.0 {
-            return Err(bad("randomization", "damping factor must be positive, friction non-negative".into()));
+            return Err(bad(
+                "randomization",
+                "damping factor must be positive, friction non-negative".into(),
+            ));
         }
         if self.terrain.tiles && (self.terrain.rows == 0 || self.terrain.columns.is_empty()) {
-            return Err(bad("terrain", "tiles need at least one row and one column".into()));
+            return Err(bad(
+                "terrain",
+                "tiles need at least one row and one column".into(),
+            ));
         }
-        if !(self.terrain.cell_size_m > 0.0) {
+        if self.terrain.cell_size_m.is_nan() || self.terrain.cell_size_m <= 0.0 {
             return Err(bad("terrain.cell_size_m", "must be positive".into()));
         }
         Ok(())
@@ -257,13 +292,17 @@ mod tests {
 
     #[test]
     fn unknown_field_is_named() {
-        let err = EnvConfig::from_toml("env.toml", "[push]\nmax_vel = 1.0\n").unwrap_err().to_string();
+        let err = EnvConfig::from_toml("env.toml", "[push]\nmax_vel = 1.0\n")
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("env.toml") && err.contains("max_vel"), "{err}");
     }
 
     #[test]
     fn bad_range_is_named() {
-        let err = EnvConfig::from_toml("env.toml", "[randomization]\nfriction = [2.0, 1.0]\n").unwrap_err().to_string();
+        let err = EnvConfig::from_toml("env.toml", "[randomization]\nfriction = [2.0, 1.0]\n")
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("randomization.friction"), "{err}");
     }
 }

@@ -115,7 +115,10 @@ mod tests {
         let p = follow([0.3, 0.0, wz], [0.3, 0.0], 20.0);
         assert!((p.progress_m() - 6.0).abs() < 1e-3);
         assert!((p.commanded_m([0.3, 0.0, wz], 0.0) - 6.0).abs() < 1e-3);
-        assert_eq!(curriculum_step(p.progress_m(), p.commanded_m([0.3, 0.0, wz], 0.0), 8.0), LevelChange::Up);
+        assert_eq!(
+            curriculum_step(p.progress_m(), p.commanded_m([0.3, 0.0, wz], 0.0), 8.0),
+            LevelChange::Up
+        );
     }
 
     #[test]
@@ -134,7 +137,10 @@ mod tests {
         assert!(pacing.progress_m().abs() < 1e-3);
         // Standing commands count neither way.
         let stand = follow([0.0, 0.0, 0.5], [0.1, 0.0], 10.0);
-        assert_eq!((stand.progress_m(), stand.commanded_m([0.0, 0.0, 0.5], 0.0)), (0.0, 0.0));
+        assert_eq!(
+            (stand.progress_m(), stand.commanded_m([0.0, 0.0, 0.5], 0.0)),
+            (0.0, 0.0)
+        );
     }
 
     #[test]
@@ -142,6 +148,9 @@ mod tests {
         let p = follow([0.3, 0.0, 0.0], [0.3, 0.0], 5.0);
         let commanded = p.commanded_m([0.3, 0.0, 0.0], 15.0);
         assert!((commanded - 6.0).abs() < 1e-3);
-        assert_eq!(curriculum_step(p.progress_m(), commanded, 8.0), LevelChange::Down);
+        assert_eq!(
+            curriculum_step(p.progress_m(), commanded, 8.0),
+            LevelChange::Down
+        );
     }
 }

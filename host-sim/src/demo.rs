@@ -14,8 +14,15 @@ use std::path::Path;
 pub fn run(out: &Path, stand_s: f32, walk_s: f32, speed_m_s: f32) -> anyhow::Result<()> {
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let model = UrdfModel::load(&default_urdf_path())?;
-    let mut robot = RobotWorld::new(&model, Terrain::generate(&TerrainConfig::default()).collider(), 1)?;
-    let gait = TripodGait { velocity_m_s: [speed_m_s, 0.0], ..Default::default() };
+    let mut robot = RobotWorld::new(
+        &model,
+        Terrain::generate(&TerrainConfig::default()).collider(),
+        1,
+    )?;
+    let gait = TripodGait {
+        velocity_m_s: [speed_m_s, 0.0],
+        ..Default::default()
+    };
     let mut traj = Trajectory::default();
     let steps = ((stand_s + walk_s) / POLICY_DT_S).round() as usize;
     let stand_steps = (stand_s / POLICY_DT_S).round() as usize;
@@ -24,7 +31,11 @@ pub fn run(out: &Path, stand_s: f32, walk_s: f32, speed_m_s: f32) -> anyhow::Res
         let walking = k >= stand_steps;
         for sub in 0..DECIMATION {
             let t = ((k - stand_steps.min(k)) * DECIMATION + sub) as f32 * PHYSICS_DT_S;
-            let target = if walking { gait.joint_targets(t) } else { Q0_RAD };
+            let target = if walking {
+                gait.joint_targets(t)
+            } else {
+                Q0_RAD
+            };
             robot.step(&target);
         }
         let state = robot.state();
@@ -33,12 +44,20 @@ pub fn run(out: &Path, stand_s: f32, walk_s: f32, speed_m_s: f32) -> anyhow::Res
         traj.push(Sample {
             time_s: (k + 1) as f32 * POLICY_DT_S,
             state,
-            command: if walking { [speed_m_s, 0.0, 0.0] } else { [0.0; 3] },
+            command: if walking {
+                [speed_m_s, 0.0, 0.0]
+            } else {
+                [0.0; 3]
+            },
             contact_mask: mask,
             height_m: state.base_pos_world_m[2],
         });
         if (k + 1) % 50 == 0 {
-            eprint!("\r[demo] {:5.1} s simulated / {:.1} s", (k + 1) as f32 * POLICY_DT_S, stand_s + walk_s);
+            eprint!(
+                "\r[demo] {:5.1} s simulated / {:.1} s",
+                (k + 1) as f32 * POLICY_DT_S,
+                stand_s + walk_s
+            );
         }
     }
     eprintln!();
@@ -52,6 +71,9 @@ pub fn run(out: &Path, stand_s: f32, walk_s: f32, speed_m_s: f32) -> anyhow::Res
         last.base_pos_world_m[2],
         started.elapsed().as_secs_f32()
     );
-    println!("wrote {}/trajectory.csv, motion.png, gait.png", out.display());
+    println!(
+        "wrote {}/trajectory.csv, motion.png, gait.png",
+        out.display()
+    );
     Ok(())
 }

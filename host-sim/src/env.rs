@@ -14,12 +14,12 @@ use crate::urdf_model::{UrdfError, UrdfModel};
 use crate::vec_env::{Observations, StepResult, VecEnv};
 use hexapod_core::amp::AMP_STATE_DIM;
 use hexapod_core::control::action_to_targets;
+use hexapod_core::kinematics::foot_position_base;
 use hexapod_core::obs::{
     actor_obs, height_scan_point_m, proprio_noise_scale, ProprioHistory, ACTION_CLIP,
     ACTOR_OBS_DIM, HEIGHT_SCALE, HEIGHT_SCAN_DIM, HEIGHT_SCAN_OFFSET_M, HISTORY_DIM,
     PRIVILEGED_DIM, PROPRIO_DIM,
 };
-use hexapod_core::kinematics::foot_position_base;
 use hexapod_core::robot::{
     Leg, FOOT_RADIUS_M, NUM_JOINTS, NUM_LEGS, Q0_RAD, Q_MAX_RAD, Q_MIN_RAD, TORQUE_LIMIT_NM,
     VELOCITY_LIMIT_RAD_S,
@@ -142,7 +142,9 @@ impl HexapodEnv {
         let slots: Result<Vec<Slot>, EnvError> = (0..config.num_envs)
             .map(|i| {
                 let robot = RobotWorld::new(model, ground.clone(), config.solver_iterations)?;
-                let mut rng = ChaCha8Rng::seed_from_u64(config.seed.wrapping_mul(0x9E37_79B9).wrapping_add(i as u64));
+                let mut rng = ChaCha8Rng::seed_from_u64(
+                    config.seed.wrapping_mul(0x9E37_79B9).wrapping_add(i as u64),
+                );
                 let columns = config.terrain.columns.len().max(1);
                 let level = if config.terrain.tiles {
                     rng.gen_range(0..=config.max_initial_level.min(config.terrain.rows - 1))
@@ -179,7 +181,12 @@ impl HexapodEnv {
                 })
             })
             .collect();
-        Ok(Self { config, terrain, slots: slots?, max_episode_steps })
+        Ok(Self {
+            config,
+            terrain,
+            slots: slots?,
+            max_episode_steps,
+        })
     }
 
     /// The config in force.
@@ -332,7 +339,11 @@ impl VecEnv for HexapodEnv {
 
     fn step(&mut self, actions: &[f32]) -> StepResult {
         let n = self.slots.len();
-        assert_eq!(actions.len(), n * NUM_JOINTS, "actions must be [num_envs, 18]");
+        assert_eq!(
+            actions.len(),
+            n * NUM_JOINTS,
+            "actions must be [num_envs, 18]"
+        );
         let config = &self.config;
         let max_steps = self.max_episode_steps;
         let outs: Vec<SlotStep> = self
@@ -370,9 +381,14 @@ impl VecEnv for HexapodEnv {
             }
         }
         if finished > 0 {
-            result.episode_log = sums.into_iter().map(|(k, v)| (k, v / finished as f32)).collect();
+            result.episode_log = sums
+                .into_iter()
+                .map(|(k, v)| (k, v / finished as f32))
+                .collect();
             let mean_level = self.slots.iter().map(|s| s.level as f32).sum::<f32>() / n as f32;
-            result.episode_log.push(("terrain_level".into(), mean_level));
+            result
+                .episode_log
+                .push(("terrain_level".into(), mean_level));
             if self.config.terrain.tiles {
                 // Per tile kind: a stalled column (stairs) hides in the mean over all robots.
                 for (column, kind) in self.config.terrain.columns.iter().enumerate() {
@@ -380,9 +396,13 @@ impl VecEnv for HexapodEnv {
                         .slots
                         .iter()
                         .filter(|s| s.column == column)
-                        .fold((0usize, 0usize), |(sum, count), s| (sum + s.level, count + 1));
+                        .fold((0usize, 0usize), |(sum, count), s| {
+                            (sum + s.level, count + 1)
+                        });
                     if count > 0 {
-                        result.episode_log.push((format!("terrain_level_{kind:?}"), sum as f32 / count as f32));
+                        result
+                            .episode_log
+                            .push((format!("terrain_level_{kind:?}"), sum as f32 / count as f32));
                     }
                 }
             }
@@ -395,13 +415,22 @@ impl VecEnv for HexapodEnv {
 /// [`SPAWN_HEIGHT_M`] above the ground under the base, or higher where a foot would
 /// otherwise start inside the ground under it (a foot over the first step of a stair tile,
 /// or over a block). A foot spawned inside a heightfield falls through it.
-pub fn spawn_height_m(terrain: &Terrain, xy: [f32; 2], yaw_rad: f32, q: &[f32; NUM_JOINTS], min_height_m: f32) -> f32 {
+pub fn spawn_height_m(
+    terrain: &Terrain,
+    xy: [f32; 2],
+    yaw_rad: f32,
+    q: &[f32; NUM_JOINTS],
+    min_height_m: f32,
+) -> f32 {
     let (sin, cos) = yaw_rad.sin_cos();
     let mut z = terrain.height_at_m(xy[0], xy[1]) + min_height_m;
     for leg in Leg::ALL {
         let j = 3 * leg.index();
         let p = foot_position_base(leg, [q[j], q[j + 1], q[j + 2]]);
-        let (fx, fy) = (xy[0] + cos * p[0] - sin * p[1], xy[1] + sin * p[0] + cos * p[1]);
+        let (fx, fy) = (
+            xy[0] + cos * p[0] - sin * p[1],
+            xy[1] + sin * p[0] + cos * p[1],
+        );
         z = z.max(terrain.height_at_m(fx, fy) - p[2] + FOOT_RADIUS_M + SPAWN_FOOT_GAP_M);
     }
     z
@@ -411,7 +440,12 @@ pub fn spawn_height_m(terrain: &Terrain, xy: [f32; 2], yaw_rad: f32, q: &[f32; N
 /// `max_tilt_deg` from upright, or the state is not finite.
 pub fn terminated(s: &RobotState, trunk_contact: bool, max_tilt_deg: f32) -> bool {
     let gravity = rotate_inverse(s.base_quat_xyzw, [0.0, 0.0, -1.0]);
-    let finite = s.base_pos_world_m.iter().chain(s.q_rad.iter()).chain(s.qdot_rad_s.iter()).all(|x| x.is_finite());
+    let finite = s
+        .base_pos_world_m
+        .iter()
+        .chain(s.q_rad.iter())
+        .chain(s.qdot_rad_s.iter())
+        .all(|x| x.is_finite());
     trunk_contact || gravity[2] > -max_tilt_deg.to_radians().cos() || !finite
 }
 
@@ -467,7 +501,8 @@ impl Slot {
         }
         let mut drives = DriveParams::default();
         for j in 0..NUM_JOINTS {
-            let stiffness = NOMINAL_STIFFNESS_NM_PER_RAD * uniform(&mut self.rng, r.stiffness_factor);
+            let stiffness =
+                NOMINAL_STIFFNESS_NM_PER_RAD * uniform(&mut self.rng, r.stiffness_factor);
             let damping = CSP_KP2_NMS_PER_RAD * uniform(&mut self.rng, r.damping_factor);
             drives.kp2_nms_per_rad[j] = damping;
             drives.kp1_per_s[j] = stiffness / damping;
@@ -476,10 +511,16 @@ impl Slot {
         self.robot.drives = drives;
         self.friction = uniform(&mut self.rng, r.friction);
         self.robot.set_foot_friction(self.friction);
-        let scales: Vec<f32> = (0..self.robot.num_links()).map(|_| uniform(&mut self.rng, r.link_mass_factor)).collect();
+        let scales: Vec<f32> = (0..self.robot.num_links())
+            .map(|_| uniform(&mut self.rng, r.link_mass_factor))
+            .collect();
         let payload = uniform(&mut self.rng, r.payload_kg);
         let off = r.payload_offset_m;
-        let offset = [uniform(&mut self.rng, [-off, off]), uniform(&mut self.rng, [-off, off]), 0.0];
+        let offset = [
+            uniform(&mut self.rng, [-off, off]),
+            uniform(&mut self.rng, [-off, off]),
+            0.0,
+        ];
         self.robot.set_mass_properties(&scales, payload, offset);
     }
 
@@ -498,8 +539,9 @@ impl Slot {
         let mut q = Q0_RAD;
         if config.randomization.enabled {
             for j in 0..NUM_JOINTS {
-                q[j] = (Q0_RAD[j] * uniform(&mut self.rng, config.randomization.initial_joint_pos_factor))
-                    .clamp(Q_MIN_RAD[j], Q_MAX_RAD[j]);
+                q[j] = (Q0_RAD[j]
+                    * uniform(&mut self.rng, config.randomization.initial_joint_pos_factor))
+                .clamp(Q_MIN_RAD[j], Q_MAX_RAD[j]);
             }
         }
         let reference = self.draw_reference(config);
@@ -511,9 +553,14 @@ impl Slot {
             let quat = quat_mul(quat_from_yaw(yaw), r.tilt_quat_xyzw());
             let z = spawn_height_m(&self.terrain, [x, y], yaw, &q, r.base_height_m);
             self.robot.reset([x, y, z], quat, &q);
-            self.robot.set_velocities(rotate(quat, r.lin_vel_base_m_s), rotate(quat, r.ang_vel_base_rad_s), &r.qdot_rad_s);
+            self.robot.set_velocities(
+                rotate(quat, r.lin_vel_base_m_s),
+                rotate(quat, r.ang_vel_base_rad_s),
+                &r.qdot_rad_s,
+            );
             for j in 0..NUM_JOINTS {
-                self.action[j] = ((q[j] - Q0_RAD[j]) / ACTION_SCALE_RAD).clamp(-ACTION_CLIP, ACTION_CLIP);
+                self.action[j] =
+                    ((q[j] - Q0_RAD[j]) / ACTION_SCALE_RAD).clamp(-ACTION_CLIP, ACTION_CLIP);
             }
         } else {
             let z = spawn_height_m(&self.terrain, [x, y], yaw, &q, SPAWN_HEIGHT_M);
@@ -565,14 +612,22 @@ impl Slot {
         let s = self.state;
         let height = self.base_height_m();
         self.actor = actor_obs(self.command, &self.prev_action, &proprio);
-        self.privileged = observe::privileged(&s, height, self.friction, &self.contacts, self.last_push_m_s);
+        self.privileged = observe::privileged(
+            &s,
+            height,
+            self.friction,
+            &self.contacts,
+            self.last_push_m_s,
+        );
         // Height scan in the yaw-aligned frame.
         let yaw = yaw_rad(s.base_quat_xyzw);
         let (sin, cos) = yaw.sin_cos();
         let [bx, by, bz] = s.base_pos_world_m;
         for k in 0..HEIGHT_SCAN_DIM {
             let [px, py] = height_scan_point_m(k);
-            let h = self.terrain.height_at_m(bx + cos * px - sin * py, by + sin * px + cos * py);
+            let h = self
+                .terrain
+                .height_at_m(bx + cos * px - sin * py, by + sin * px + cos * py);
             self.heights[k] = (bz - HEIGHT_SCAN_OFFSET_M - h).clamp(-1.0, 1.0) * HEIGHT_SCALE;
         }
         self.amp = observe::amp(&s);
@@ -584,7 +639,14 @@ impl Slot {
             let amp_next = self.amp;
             let episode = Some(self.episode_log());
             self.reset(config);
-            return SlotStep { reward: 0.0, done: true, time_out: false, invalid, amp_next, episode };
+            return SlotStep {
+                reward: 0.0,
+                done: true,
+                time_out: false,
+                invalid,
+                amp_next,
+                episode,
+            };
         }
         // The firmware's action path (`hexapod_core::control::action_to_targets`): clip,
         // offset from the nominal pose, clamp to the joint limits and the rate limit.
@@ -610,12 +672,19 @@ impl Slot {
         let s = self.state;
         let lin_vel = rotate_inverse(s.base_quat_xyzw, s.base_lin_vel_world_m_s);
         let ang_vel = rotate_inverse(s.base_quat_xyzw, s.base_ang_vel_world_rad_s);
-        self.command_progress.advance(self.command, [lin_vel[0], lin_vel[1]], POLICY_DT_S);
+        self.command_progress
+            .advance(self.command, [lin_vel[0], lin_vel[1]], POLICY_DT_S);
         let mut qddot = [0.0; NUM_JOINTS];
         for j in 0..NUM_JOINTS {
             qddot[j] = (s.qdot_rad_s[j] - self.last_qdot[j]) / POLICY_DT_S;
         }
-        let collisions = self.contacts.thighs.iter().chain(self.contacts.shanks.iter()).filter(|c| **c).count() as u32;
+        let collisions = self
+            .contacts
+            .thighs
+            .iter()
+            .chain(self.contacts.shanks.iter())
+            .filter(|c| **c)
+            .count() as u32;
         let terms = rewards::compute(
             &config.rewards,
             &RewardInputs {
@@ -648,24 +717,44 @@ impl Slot {
             let episode = Some(self.episode_log());
             self.update_curriculum(config);
             self.reset(config);
-            return SlotStep { reward: terms.total(), done, time_out: time_out && !terminated, invalid, amp_next, episode };
+            return SlotStep {
+                reward: terms.total(),
+                done,
+                time_out: time_out && !terminated,
+                invalid,
+                amp_next,
+                episode,
+            };
         }
         // Pushes and command resampling.
         let push_every = (config.push.interval_s / POLICY_DT_S).round().max(1.0) as usize;
-        if config.push.enabled && self.step % push_every == 0 {
+        if config.push.enabled && self.step.is_multiple_of(push_every) {
             let m = config.push.max_vel_xy_m_s;
-            let dv = [uniform(&mut self.rng, [-m, m]), uniform(&mut self.rng, [-m, m]), 0.0];
+            let dv = [
+                uniform(&mut self.rng, [-m, m]),
+                uniform(&mut self.rng, [-m, m]),
+                0.0,
+            ];
             self.robot.push(dv);
             self.last_push_m_s = dv;
         }
-        let resample_every = (config.commands.resampling_time_s / POLICY_DT_S).round().max(1.0) as usize;
-        if self.step % resample_every == 0 {
+        let resample_every = (config.commands.resampling_time_s / POLICY_DT_S)
+            .round()
+            .max(1.0) as usize;
+        if self.step.is_multiple_of(resample_every) {
             self.sample_command(config);
         }
         let proprio = self.proprio(config);
         self.history.push(&proprio);
         self.observe(proprio);
-        SlotStep { reward: terms.total(), done, time_out: false, invalid, amp_next, episode: None }
+        SlotStep {
+            reward: terms.total(),
+            done,
+            time_out: false,
+            invalid,
+            amp_next,
+            episode: None,
+        }
     }
 
     fn episode_log(&self) -> Vec<(String, f32)> {

@@ -9,7 +9,11 @@ pub fn rotate_inverse(q: [f32; 4], v: [f32; 3]) -> [f32; 3] {
 pub fn rotate(q: [f32; 4], v: [f32; 3]) -> [f32; 3] {
     let [x, y, z, w] = q;
     // t = 2 * (q_vec x v); v' = v + w t + q_vec x t
-    let t = [2.0 * (y * v[2] - z * v[1]), 2.0 * (z * v[0] - x * v[2]), 2.0 * (x * v[1] - y * v[0])];
+    let t = [
+        2.0 * (y * v[2] - z * v[1]),
+        2.0 * (z * v[0] - x * v[2]),
+        2.0 * (x * v[1] - y * v[0]),
+    ];
     [
         v[0] + w * t[0] + (y * t[2] - z * t[1]),
         v[1] + w * t[1] + (z * t[0] - x * t[2]),
@@ -28,6 +32,18 @@ pub fn quat_from_yaw(yaw_rad: f32) -> [f32; 4] {
     [0.0, 0.0, (yaw_rad / 2.0).sin(), (yaw_rad / 2.0).cos()]
 }
 
+/// The Hamilton product `a b` (rotate by `b`, then by `a`).
+pub fn quat_mul(a: [f32; 4], b: [f32; 4]) -> [f32; 4] {
+    let [ax, ay, az, aw] = a;
+    let [bx, by, bz, bw] = b;
+    [
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    ]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -41,16 +57,4 @@ mod tests {
         let back = rotate_inverse(q, v);
         assert!((back[0] - 1.0).abs() < 1e-6 && back[1].abs() < 1e-6);
     }
-}
-
-/// The Hamilton product `a b` (rotate by `b`, then by `a`).
-pub fn quat_mul(a: [f32; 4], b: [f32; 4]) -> [f32; 4] {
-    let [ax, ay, az, aw] = a;
-    let [bx, by, bz, bw] = b;
-    [
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-        aw * bw - ax * bx - ay * by - az * bz,
-    ]
 }

@@ -20,7 +20,12 @@ pub struct TripodGait {
 
 impl Default for TripodGait {
     fn default() -> Self {
-        Self { period_s: 0.6, velocity_m_s: [0.2, 0.0], yaw_rate_rad_s: 0.0, step_height_m: 0.06 }
+        Self {
+            period_s: 0.6,
+            velocity_m_s: [0.2, 0.0],
+            yaw_rate_rad_s: 0.0,
+            step_height_m: 0.06,
+        }
     }
 }
 
@@ -48,7 +53,10 @@ impl TripodGait {
             let n = nominal[leg.index()];
             // Stride: how far the ground under this foot moves in the base frame while the
             // foot stands on it, (v + w x p) over half a period.
-            let stride = [(vx - wz * n[1]) * half_period_s, (vy + wz * n[0]) * half_period_s];
+            let stride = [
+                (vx - wz * n[1]) * half_period_s,
+                (vy + wz * n[0]) * half_period_s,
+            ];
             let foot = [
                 n[0] + s * stride[0],
                 n[1] + s * stride[1],
@@ -104,8 +112,15 @@ mod tests {
     fn turning_in_place_sweeps_stance_feet_around_the_base() {
         // At t = 0.3 s tripod A is at the start of its stance and at t = 0.6 s at its end;
         // turning left at w, a stance foot at p must move by -(w x p) * T/2 in the base frame.
-        let g = TripodGait { velocity_m_s: [0.0, 0.0], yaw_rate_rad_s: 0.4, ..Default::default() };
-        let (start, end) = (foot_positions_base(&g.joint_targets(0.3)), foot_positions_base(&g.joint_targets(0.6 - 1e-4)));
+        let g = TripodGait {
+            velocity_m_s: [0.0, 0.0],
+            yaw_rate_rad_s: 0.4,
+            ..Default::default()
+        };
+        let (start, end) = (
+            foot_positions_base(&g.joint_targets(0.3)),
+            foot_positions_base(&g.joint_targets(0.6 - 1e-4)),
+        );
         let nominal = foot_positions_base(&Q0_RAD);
         for leg in 0..NUM_LEGS {
             if TRIPOD_A_MASK & (1 << leg) == 0 {
@@ -115,7 +130,11 @@ mod tests {
             let want = [0.4 * p[1] * 0.3, -0.4 * p[0] * 0.3];
             for k in 0..2 {
                 let moved = end[leg][k] - start[leg][k];
-                assert!((moved - want[k]).abs() < 2e-3, "leg {leg} axis {k}: {moved} vs {}", want[k]);
+                assert!(
+                    (moved - want[k]).abs() < 2e-3,
+                    "leg {leg} axis {k}: {moved} vs {}",
+                    want[k]
+                );
             }
         }
     }

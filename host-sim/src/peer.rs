@@ -74,7 +74,11 @@ pub fn bench_terrain() -> Terrain {
 /// Runs the fidelity procedure in rapier.
 pub fn rapier_fidelity() -> anyhow::Result<FidelityReport> {
     let model = UrdfModel::load(&default_urdf_path())?;
-    let mut robot = RobotWorld::new(&model, Terrain::generate(&TerrainConfig::default()).collider(), 1)?;
+    let mut robot = RobotWorld::new(
+        &model,
+        Terrain::generate(&TerrainConfig::default()).collider(),
+        1,
+    )?;
     robot.reset([0.0, 0.0, SPAWN_HEIGHT_M], [0.0, 0.0, 0.0, 1.0], &Q0_RAD);
     for _ in 0..STAND_STEPS {
         robot.step(&Q0_RAD);
@@ -112,7 +116,9 @@ pub fn mujoco_available() -> bool {
 pub fn run_mujoco(speed_steps: usize, settle_steps: usize) -> anyhow::Result<PeerReport> {
     let gait = reference_gait();
     let period_steps = (gait.period_s / PHYSICS_DT_S).round() as usize;
-    let targets: Vec<Vec<f32>> = (0..period_steps).map(|k| gait.joint_targets(k as f32 * PHYSICS_DT_S).to_vec()).collect();
+    let targets: Vec<Vec<f32>> = (0..period_steps)
+        .map(|k| gait.joint_targets(k as f32 * PHYSICS_DT_S).to_vec())
+        .collect();
     let model = UrdfModel::load(&default_urdf_path())?;
     let terrain = bench_terrain();
     // MuJoCo's heightfield rows run along y, columns along x.
@@ -159,10 +165,14 @@ pub fn run_mujoco(speed_steps: usize, settle_steps: usize) -> anyhow::Result<Pee
         .context("running python3 bench/mujoco_peer.py (pip install mujoco numpy)")?;
     let _ = std::fs::remove_dir_all(&dir);
     if !output.status.success() {
-        bail!("MuJoCo peer failed: {}", String::from_utf8_lossy(&output.stderr));
+        bail!(
+            "MuJoCo peer failed: {}",
+            String::from_utf8_lossy(&output.stderr)
+        );
     }
     let stdout = String::from_utf8_lossy(&output.stdout);
-    serde_json::from_str(stdout.trim()).with_context(|| format!("parsing MuJoCo peer output: {stdout}"))
+    serde_json::from_str(stdout.trim())
+        .with_context(|| format!("parsing MuJoCo peer output: {stdout}"))
 }
 
 #[cfg(test)]
@@ -175,13 +185,21 @@ mod tests {
         let [cx, cy] = rough.tile_center_m(0, 0);
         let model = UrdfModel::load(&default_urdf_path()).unwrap();
         let mut robot = RobotWorld::new(&model, rough.collider(), 1).unwrap();
-        robot.reset([cx, cy, SPAWN_HEIGHT_M + rough.height_at_m(cx, cy)], [0.0, 0.0, 0.0, 1.0], &Q0_RAD);
+        robot.reset(
+            [cx, cy, SPAWN_HEIGHT_M + rough.height_at_m(cx, cy)],
+            [0.0, 0.0, 0.0, 1.0],
+            &Q0_RAD,
+        );
         for _ in 0..400 {
             robot.step(&Q0_RAD);
         }
         let c = robot.contacts();
         let fz: f32 = c.foot_force_world_n.iter().map(|f| f[2]).sum();
-        eprintln!("fz {fz} contacts {} z {}", robot.num_contact_points(), robot.state().base_pos_world_m[2]);
+        eprintln!(
+            "fz {fz} contacts {} z {}",
+            robot.num_contact_points(),
+            robot.state().base_pos_world_m[2]
+        );
         assert!((fz - 25.5 * 9.81).abs() < 30.0, "fz {fz}");
     }
 }

@@ -59,12 +59,21 @@ pub struct Line {
 impl Line {
     /// A solid line.
     pub fn new(label: impl Into<String>, points: Vec<(f64, f64)>, color: RGBColor) -> Self {
-        Self { label: label.into(), points, color, dashed: false, markers: false }
+        Self {
+            label: label.into(),
+            points,
+            color,
+            dashed: false,
+            markers: false,
+        }
     }
 
     /// The `i`-th series of a panel: palette colour `i`, dashed once the palette repeats.
     pub fn nth(i: usize, label: impl Into<String>, points: Vec<(f64, f64)>) -> Self {
-        Self { dashed: i >= COLORS.len(), ..Self::new(label, points, COLORS[i % COLORS.len()]) }
+        Self {
+            dashed: i >= COLORS.len(),
+            ..Self::new(label, points, COLORS[i % COLORS.len()])
+        }
     }
 
     /// The same line dashed.
@@ -82,7 +91,11 @@ impl Line {
 
 /// `(t, v)` points of a time series sampled at `time_s`.
 pub fn trace(time_s: &[f32], values: impl IntoIterator<Item = f32>) -> Vec<(f64, f64)> {
-    time_s.iter().zip(values).map(|(t, v)| (*t as f64, v as f64)).collect()
+    time_s
+        .iter()
+        .zip(values)
+        .map(|(t, v)| (*t as f64, v as f64))
+        .collect()
 }
 
 /// A line chart: title, axis names (quantity and unit), curves.
@@ -104,8 +117,19 @@ pub struct Panel {
 
 impl Panel {
     /// An empty panel.
-    pub fn new(title: impl Into<String>, x_label: impl Into<String>, y_label: impl Into<String>) -> Self {
-        Self { title: title.into(), x_label: x_label.into(), y_label: y_label.into(), y_range: None, integer_x: false, lines: Vec::new() }
+    pub fn new(
+        title: impl Into<String>,
+        x_label: impl Into<String>,
+        y_label: impl Into<String>,
+    ) -> Self {
+        Self {
+            title: title.into(),
+            x_label: x_label.into(),
+            y_label: y_label.into(),
+            y_range: None,
+            integer_x: false,
+            lines: Vec::new(),
+        }
     }
 
     /// Adds a curve.
@@ -132,7 +156,10 @@ impl Panel {
     }
 
     fn finite_points(&self) -> impl Iterator<Item = &(f64, f64)> {
-        self.lines.iter().flat_map(|l| l.points.iter()).filter(|p| p.0.is_finite() && p.1.is_finite())
+        self.lines
+            .iter()
+            .flat_map(|l| l.points.iter())
+            .filter(|p| p.0.is_finite() && p.1.is_finite())
     }
 
     /// The x and y ranges drawn.
@@ -151,7 +178,9 @@ impl Panel {
             if y0 > y1 {
                 return (0.0, 1.0);
             }
-            let pad = ((y1 - y0) * 0.06).max(1e-3 * y0.abs().max(y1.abs())).max(1e-6);
+            let pad = ((y1 - y0) * 0.06)
+                .max(1e-3 * y0.abs().max(y1.abs()))
+                .max(1e-6);
             (y0 - pad, y1 + pad)
         });
         ((x0, x1), y)
@@ -164,7 +193,10 @@ pub fn tick_label(value: f64, span: f64) -> String {
     let step = (span / 10.0).abs().max(1e-9);
     let decimals = (-step.log10().floor()).clamp(0.0, 6.0) as usize;
     let s = format!("{value:.decimals$}");
-    if s.trim_start_matches('-').chars().all(|c| c == '0' || c == '.') {
+    if s.trim_start_matches('-')
+        .chars()
+        .all(|c| c == '0' || c == '.')
+    {
         s.trim_start_matches('-').to_string()
     } else {
         s
@@ -178,17 +210,26 @@ pub fn legend_width<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, panels: &
         .iter()
         .filter(|p| p.has_legend())
         .flat_map(|p| p.lines.iter())
-        .map(|l| area.estimate_text_size(&l.label, &font).map(|(w, _)| w).unwrap_or(8 * l.label.len() as u32))
+        .map(|l| {
+            area.estimate_text_size(&l.label, &font)
+                .map(|(w, _)| w)
+                .unwrap_or(8 * l.label.len() as u32)
+        })
         .max();
     widest.map_or(0, |w| w + 48)
 }
 
 /// Draws `panel` into `area`, its legend (if any) in a column `legend_px` wide on the right.
-pub fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, panel: &Panel, legend_px: u32) -> anyhow::Result<()>
+pub fn draw_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    panel: &Panel,
+    legend_px: u32,
+) -> anyhow::Result<()>
 where
     DB::ErrorType: 'static,
 {
-    let (plot_area, legend_area) = area.split_horizontally(area.dim_in_pixel().0.saturating_sub(legend_px));
+    let (plot_area, legend_area) =
+        area.split_horizontally(area.dim_in_pixel().0.saturating_sub(legend_px));
     let ((x0, x1), (y0, y1)) = panel.ranges();
     let mut chart = ChartBuilder::on(&plot_area)
         .caption(&panel.title, (FONT, CAPTION_PX))
@@ -200,10 +241,18 @@ where
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     let (x_span, y_span) = (x1 - x0, y1 - y0);
     // Whole-number ticks: at most one per unit of x, unlabelled if plotters picks a half.
-    let x_ticks = if panel.integer_x { (x_span as usize + 1).clamp(2, 10) } else { 10 };
+    let x_ticks = if panel.integer_x {
+        (x_span as usize + 1).clamp(2, 10)
+    } else {
+        10
+    };
     let x_fmt = |x: &f64| {
         if panel.integer_x {
-            if (x - x.round()).abs() < 1e-6 { format!("{}", x.round() as i64) } else { String::new() }
+            if (x - x.round()).abs() < 1e-6 {
+                format!("{}", x.round() as i64)
+            } else {
+                String::new()
+            }
         } else {
             tick_label(*x, x_span)
         }
@@ -226,23 +275,43 @@ where
     for line in &panel.lines {
         let style = line.color.stroke_width(2);
         // Gaps at non-finite values: one polyline per finite run.
-        for run in line.points.split(|p| !(p.0.is_finite() && p.1.is_finite())).filter(|r| !r.is_empty()) {
+        for run in line
+            .points
+            .split(|p| !(p.0.is_finite() && p.1.is_finite()))
+            .filter(|r| !r.is_empty())
+        {
             if line.dashed {
-                chart.draw_series(DashedLineSeries::new(run.iter().copied(), 8, 5, style)).map_err(|e| anyhow::anyhow!("{e}"))?;
+                chart
+                    .draw_series(DashedLineSeries::new(run.iter().copied(), 8, 5, style))
+                    .map_err(|e| anyhow::anyhow!("{e}"))?;
             } else {
                 // Segment by segment: plotters joins a wide polyline with unlimited miters,
                 // which draws a sharp spike as a long needle past the data (and the panel).
-                let segments = run.windows(2).map(|w| PathElement::new(vec![w[0], w[1]], style));
-                chart.draw_series(segments).map_err(|e| anyhow::anyhow!("{e}"))?;
+                let segments = run
+                    .windows(2)
+                    .map(|w| PathElement::new(vec![w[0], w[1]], style));
+                chart
+                    .draw_series(segments)
+                    .map_err(|e| anyhow::anyhow!("{e}"))?;
             }
             if line.markers {
-                chart.draw_series(run.iter().map(|p| Circle::new(*p, 3, line.color.filled()))).map_err(|e| anyhow::anyhow!("{e}"))?;
+                chart
+                    .draw_series(run.iter().map(|p| Circle::new(*p, 3, line.color.filled())))
+                    .map_err(|e| anyhow::anyhow!("{e}"))?;
             }
         }
     }
     if panel.has_legend() && legend_px > 0 {
-        let entries: Vec<LegendEntry> =
-            panel.lines.iter().map(|l| LegendEntry { label: &l.label, color: l.color, dashed: l.dashed, filled: false }).collect();
+        let entries: Vec<LegendEntry> = panel
+            .lines
+            .iter()
+            .map(|l| LegendEntry {
+                label: &l.label,
+                color: l.color,
+                dashed: l.dashed,
+                filled: false,
+            })
+            .collect();
         draw_legend(&legend_area, &entries)?;
     }
     Ok(())
@@ -256,7 +325,10 @@ struct LegendEntry<'a> {
     filled: bool,
 }
 
-fn draw_legend<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, entries: &[LegendEntry]) -> anyhow::Result<()>
+fn draw_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    entries: &[LegendEntry],
+) -> anyhow::Result<()>
 where
     DB::ErrorType: 'static,
 {
@@ -267,15 +339,23 @@ where
         let y = top + i as i32 * row_px;
         let style = e.color.stroke_width(2);
         if e.filled {
-            area.draw(&Rectangle::new([(4, y - 5), (30, y + 5)], e.color.filled())).map_err(err)?;
+            area.draw(&Rectangle::new([(4, y - 5), (30, y + 5)], e.color.filled()))
+                .map_err(err)?;
         } else if e.dashed {
-            area.draw(&PathElement::new(vec![(4, y), (13, y)], style)).map_err(err)?;
-            area.draw(&PathElement::new(vec![(19, y), (30, y)], style)).map_err(err)?;
+            area.draw(&PathElement::new(vec![(4, y), (13, y)], style))
+                .map_err(err)?;
+            area.draw(&PathElement::new(vec![(19, y), (30, y)], style))
+                .map_err(err)?;
         } else {
-            area.draw(&PathElement::new(vec![(4, y), (30, y)], style)).map_err(err)?;
+            area.draw(&PathElement::new(vec![(4, y), (30, y)], style))
+                .map_err(err)?;
         }
-        let font = (FONT, LABEL_PX).into_font().color(&BLACK).pos(Pos::new(HPos::Left, VPos::Center));
-        area.draw(&Text::new(e.label.to_string(), (36, y), font)).map_err(err)?;
+        let font = (FONT, LABEL_PX)
+            .into_font()
+            .color(&BLACK)
+            .pos(Pos::new(HPos::Left, VPos::Center));
+        area.draw(&Text::new(e.label.to_string(), (36, y), font))
+            .map_err(err)?;
     }
     Ok(())
 }
@@ -283,11 +363,20 @@ where
 /// Writes `panels` into a PNG, `columns` panels per row, each `panel_px` (width, height),
 /// under `title` if given; the legends of all panels get one column width so the plotting
 /// areas line up.
-pub fn write_panels(path: &Path, title: Option<&str>, columns: usize, panel_px: (u32, u32), panels: &[Panel]) -> anyhow::Result<()> {
+pub fn write_panels(
+    path: &Path,
+    title: Option<&str>,
+    columns: usize,
+    panel_px: (u32, u32),
+    panels: &[Panel],
+) -> anyhow::Result<()> {
     let columns = columns.max(1);
     let rows = panels.len().div_ceil(columns).max(1);
     let title_px = if title.is_some() { 36 } else { 0 };
-    let size = (panel_px.0 * columns as u32, panel_px.1 * rows as u32 + title_px);
+    let size = (
+        panel_px.0 * columns as u32,
+        panel_px.1 * rows as u32 + title_px,
+    );
     let root = BitMapBackend::new(path, size).into_drawing_area();
     root.fill(&WHITE)?;
     let body = match title {
@@ -320,7 +409,9 @@ pub struct Gait<'a> {
 /// Legend width the gait diagram needs beside it, px.
 pub fn gait_legend_width<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>) -> u32 {
     let font: TextStyle = (FONT, LABEL_PX).into();
-    area.estimate_text_size(TRIPOD_LABELS[0], &font).map(|(w, _)| w + 48).unwrap_or(260)
+    area.estimate_text_size(TRIPOD_LABELS[0], &font)
+        .map(|(w, _)| w + 48)
+        .unwrap_or(260)
 }
 
 const TRIPOD_LABELS: [&str; 2] = ["tripod A (RF LM RR)", "tripod B (LF RM LR)"];
@@ -328,12 +419,17 @@ const TRIPOD_LABELS: [&str; 2] = ["tripod A (RF LM RR)", "tripod B (LF RM LR)"];
 /// Draws a gait diagram into `area`: six rows, RF at the top to LR at the bottom (the joint
 /// order), a bar where the foot is in stance, tripod A and B in their colours; the legend
 /// in a column `legend_px` wide on the right.
-pub fn draw_gait<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, gait: &Gait, legend_px: u32) -> anyhow::Result<()>
+pub fn draw_gait<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    gait: &Gait,
+    legend_px: u32,
+) -> anyhow::Result<()>
 where
     DB::ErrorType: 'static,
 {
     let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow::anyhow!("{e}");
-    let (plot_area, legend_area) = area.split_horizontally(area.dim_in_pixel().0.saturating_sub(legend_px));
+    let (plot_area, legend_area) =
+        area.split_horizontally(area.dim_in_pixel().0.saturating_sub(legend_px));
     let t0 = gait.time_s.first().copied().unwrap_or(0.0) as f64;
     let t1 = (gait.time_s.last().copied().unwrap_or(1.0) + gait.dt_s) as f64;
     let t1 = if t1 > t0 { t1 } else { t0 + 1.0 };
@@ -371,7 +467,11 @@ where
         .draw()
         .map_err(err)?;
     for leg in 0..NUM_LEGS {
-        let color = if TRIPOD_A_MASK & (1 << leg) != 0 { TRIPOD_A_COLOR } else { TRIPOD_B_COLOR };
+        let color = if TRIPOD_A_MASK & (1 << leg) != 0 {
+            TRIPOD_A_COLOR
+        } else {
+            TRIPOD_B_COLOR
+        };
         let row = row_of(leg);
         // Runs of consecutive stance samples as one bar each.
         let mut bars = Vec::new();
@@ -393,13 +493,27 @@ where
             }
         }
         chart
-            .draw_series(bars.into_iter().map(|(a, b)| Rectangle::new([(a, row - 0.35), (b, row + 0.35)], color.filled())))
+            .draw_series(
+                bars.into_iter().map(|(a, b)| {
+                    Rectangle::new([(a, row - 0.35), (b, row + 0.35)], color.filled())
+                }),
+            )
             .map_err(err)?;
     }
     if legend_px > 0 {
         let entries = [
-            LegendEntry { label: TRIPOD_LABELS[0], color: TRIPOD_A_COLOR, dashed: false, filled: true },
-            LegendEntry { label: TRIPOD_LABELS[1], color: TRIPOD_B_COLOR, dashed: false, filled: true },
+            LegendEntry {
+                label: TRIPOD_LABELS[0],
+                color: TRIPOD_A_COLOR,
+                dashed: false,
+                filled: true,
+            },
+            LegendEntry {
+                label: TRIPOD_LABELS[1],
+                color: TRIPOD_B_COLOR,
+                dashed: false,
+                filled: true,
+            },
         ];
         draw_legend(&legend_area, &entries)?;
     }
@@ -426,7 +540,8 @@ mod tests {
         let mut buf = vec![255u8; (w * h * 3) as usize];
         {
             let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-            root.draw(&Text::new(text.to_string(), (6, 4), (FONT, LABEL_PX))).unwrap();
+            root.draw(&Text::new(text.to_string(), (6, 4), (FONT, LABEL_PX)))
+                .unwrap();
             root.present().unwrap();
         }
         buf.chunks(3).filter(|p| p[0] < 200).count()
@@ -460,8 +575,25 @@ mod tests {
             .line(Line::nth(0, "vx", trace(&t, t.iter().map(|x| x.sin()))))
             .line(Line::nth(0, "vx command", trace(&t, t.iter().map(|_| 0.3))).dashed());
         write_panels(&dir.join("p.png"), Some("test"), 1, (900, 300), &[panel]).unwrap();
-        let masks: Vec<u8> = (0..100).map(|k| if (k / 10) % 2 == 0 { TRIPOD_A_MASK } else { !TRIPOD_A_MASK & 0x3f }).collect();
-        write_gait(&dir.join("g.png"), &Gait { title: "gait", time_s: &t, stance_masks: &masks, dt_s: 0.02 }).unwrap();
+        let masks: Vec<u8> = (0..100)
+            .map(|k| {
+                if (k / 10) % 2 == 0 {
+                    TRIPOD_A_MASK
+                } else {
+                    !TRIPOD_A_MASK & 0x3f
+                }
+            })
+            .collect();
+        write_gait(
+            &dir.join("g.png"),
+            &Gait {
+                title: "gait",
+                time_s: &t,
+                stance_masks: &masks,
+                dt_s: 0.02,
+            },
+        )
+        .unwrap();
         for f in ["p.png", "g.png"] {
             assert!(std::fs::metadata(dir.join(f)).unwrap().len() > 1000);
         }

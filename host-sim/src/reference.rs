@@ -25,7 +25,13 @@ pub struct ReferenceState {
 impl ReferenceState {
     /// The AMP state of this instant, by the function the simulator uses on its own state.
     pub fn amp_state(&self) -> [f32; AMP_STATE_DIM] {
-        amp_state(&self.q_rad, &self.qdot_rad_s, self.lin_vel_base_m_s, self.ang_vel_base_rad_s, self.up_base)
+        amp_state(
+            &self.q_rad,
+            &self.qdot_rad_s,
+            self.lin_vel_base_m_s,
+            self.ang_vel_base_rad_s,
+            self.up_base,
+        )
     }
 
     /// Linear interpolation from `self` (`u = 0`) to `next` (`u = 1`); the up direction is
@@ -35,7 +41,9 @@ impl ReferenceState {
             std::array::from_fn(|i| a[i] + u * (b[i] - a[i]))
         }
         let up = mix(&self.up_base, &next.up_base, u);
-        let norm = (up[0] * up[0] + up[1] * up[1] + up[2] * up[2]).sqrt().max(1e-6);
+        let norm = (up[0] * up[0] + up[1] * up[1] + up[2] * up[2])
+            .sqrt()
+            .max(1e-6);
         Self {
             q_rad: mix(&self.q_rad, &next.q_rad, u),
             qdot_rad_s: mix(&self.qdot_rad_s, &next.qdot_rad_s, u),
@@ -72,7 +80,12 @@ mod tests {
     fn tilt_quaternion_reproduces_the_up_direction() {
         let s = 0.3f32.sin();
         let c = 0.3f32.cos();
-        for up in [[0.0, 0.0, 1.0], [s, 0.0, c], [0.0, -s, c], [0.6 * s, 0.8 * s, c]] {
+        for up in [
+            [0.0, 0.0, 1.0],
+            [s, 0.0, c],
+            [0.0, -s, c],
+            [0.6 * s, 0.8 * s, c],
+        ] {
             let r = ReferenceState {
                 q_rad: [0.0; NUM_JOINTS],
                 qdot_rad_s: [0.0; NUM_JOINTS],

@@ -161,14 +161,20 @@ pub fn compute(scales: &RewardScales, x: &RewardInputs, dt_s: f32) -> RewardTerm
     raw[3] = x.ang_vel_base_rad_s[0].powi(2) + x.ang_vel_base_rad_s[1].powi(2);
     raw[4] = sq(x.torque_nm);
     raw[5] = sq(x.qddot_rad_s2);
-    raw[6] = x.action.iter().zip(x.prev_action).map(|(a, b)| (a - b).powi(2)).sum();
+    raw[6] = x
+        .action
+        .iter()
+        .zip(x.prev_action)
+        .map(|(a, b)| (a - b).powi(2))
+        .sum();
     raw[7] = x.collisions as f32;
     raw[8] = (0..NUM_JOINTS)
         .map(|j| (x.torque_nm[j].abs() - scales.soft_torque_limit * x.torque_limit_nm[j]).max(0.0))
         .sum();
     raw[9] = (0..NUM_JOINTS)
         .map(|j| {
-            (x.qdot_rad_s[j].abs() - scales.soft_velocity_limit * x.velocity_limit_rad_s[j]).clamp(0.0, 1.0)
+            (x.qdot_rad_s[j].abs() - scales.soft_velocity_limit * x.velocity_limit_rad_s[j])
+                .clamp(0.0, 1.0)
         })
         .sum();
     raw[10] = x
@@ -177,8 +183,11 @@ pub fn compute(scales: &RewardScales, x: &RewardInputs, dt_s: f32) -> RewardTerm
         .map(|f| (sq(f).sqrt() - scales.max_contact_force_n).max(0.0))
         .sum();
     let mask = stance_mask(x.foot_force_n);
-    let moving = x.command[0].hypot(x.command[1]) > MOVING_COMMAND_MIN || x.command[2].abs() > MOVING_COMMAND_MIN;
-    raw[11] = f32::from(u8::from(moving && (mask == TRIPOD_A_MASK || mask == TRIPOD_B_MASK)));
+    let moving = x.command[0].hypot(x.command[1]) > MOVING_COMMAND_MIN
+        || x.command[2].abs() > MOVING_COMMAND_MIN;
+    raw[11] = f32::from(u8::from(
+        moving && (mask == TRIPOD_A_MASK || mask == TRIPOD_B_MASK),
+    ));
     let s = [
         scales.tracking_lin_vel,
         scales.tracking_ang_vel,
@@ -196,7 +205,11 @@ pub fn compute(scales: &RewardScales, x: &RewardInputs, dt_s: f32) -> RewardTerm
     let mut terms = RewardTerms::default();
     for k in 0..NUM_TERMS {
         // The gait term (last) is switched by its scale alone.
-        let on = if k < 2 { scales.task } else { k == NUM_TERMS - 1 || scales.regularization };
+        let on = if k < 2 {
+            scales.task
+        } else {
+            k == NUM_TERMS - 1 || scales.regularization
+        };
         terms.values[k] = if on { s[k] * raw[k] * dt_s } else { 0.0 };
     }
     terms
@@ -204,14 +217,19 @@ pub fn compute(scales: &RewardScales, x: &RewardInputs, dt_s: f32) -> RewardTerm
 
 /// Feet in stance (bit i = leg i): contact-force norm above [`STANCE_FORCE_N`].
 pub fn stance_mask(foot_force_n: &[[f32; 3]; NUM_LEGS]) -> u8 {
-    (0..NUM_LEGS).filter(|&l| sq(&foot_force_n[l]).sqrt() > STANCE_FORCE_N).fold(0, |m, l| m | (1 << l))
+    (0..NUM_LEGS)
+        .filter(|&l| sq(&foot_force_n[l]).sqrt() > STANCE_FORCE_N)
+        .fold(0, |m, l| m | (1 << l))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn inputs<'a>(zeros: &'a [f32; NUM_JOINTS], feet: &'a [[f32; 3]; NUM_LEGS]) -> RewardInputs<'a> {
+    fn inputs<'a>(
+        zeros: &'a [f32; NUM_JOINTS],
+        feet: &'a [[f32; 3]; NUM_LEGS],
+    ) -> RewardInputs<'a> {
         RewardInputs {
             command: [0.3, 0.0, 0.0],
             lin_vel_base_m_s: [0.3, 0.0, 0.0],
@@ -242,10 +260,16 @@ mod tests {
     fn groups_switch_off() {
         let z = [0.0; NUM_JOINTS];
         let feet = [[0.0; 3]; NUM_LEGS];
-        let scales = RewardScales { regularization: false, ..Default::default() };
+        let scales = RewardScales {
+            regularization: false,
+            ..Default::default()
+        };
         let t = compute(&scales, &inputs(&z, &feet), 0.02);
         assert_eq!(t.values[7], 0.0);
-        let scales = RewardScales { task: false, ..Default::default() };
+        let scales = RewardScales {
+            task: false,
+            ..Default::default()
+        };
         let t = compute(&scales, &inputs(&z, &feet), 0.02);
         assert_eq!(t.values[0], 0.0);
     }
@@ -262,7 +286,10 @@ mod tests {
     #[test]
     fn tripod_contact_rewards_only_a_tripod_stance_while_moving() {
         let z = [0.0; NUM_JOINTS];
-        let scales = RewardScales { tripod_contact: 0.5, ..Default::default() };
+        let scales = RewardScales {
+            tripod_contact: 0.5,
+            ..Default::default()
+        };
         let mut feet = [[0.0; 3]; NUM_LEGS];
         for leg in (0..NUM_LEGS).filter(|l| TRIPOD_A_MASK & (1 << l) != 0) {
             feet[leg] = [0.0, 0.0, 80.0];
@@ -271,7 +298,10 @@ mod tests {
         let t = compute(&scales, &inputs(&z, &feet), 1.0);
         assert_eq!(t.values[11], 0.5);
         // Off by default (the paper's Table I).
-        assert_eq!(compute(&RewardScales::default(), &inputs(&z, &feet), 1.0).values[11], 0.0);
+        assert_eq!(
+            compute(&RewardScales::default(), &inputs(&z, &feet), 1.0).values[11],
+            0.0
+        );
         // Standing still: no gait reward.
         let mut standing = inputs(&z, &feet);
         standing.command = [0.0; 3];

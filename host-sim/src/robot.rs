@@ -201,7 +201,10 @@ struct JointBodies {
 }
 
 fn structure_error(model: &UrdfModel, message: String) -> BuildError {
-    BuildError::Structure { path: model.path.display().to_string(), message }
+    BuildError::Structure {
+        path: model.path.display().to_string(),
+        message,
+    }
 }
 
 /// An empty world: gravity, the physics time step and the solver settings.
@@ -217,7 +220,10 @@ fn physics_world(solver_iterations: usize) -> PhysicsWorld {
 }
 
 /// Inserts the URDF's links and joints as one multibody without self-contacts.
-fn insert_urdf(world: &mut PhysicsWorld, model: &UrdfModel) -> UrdfRobotHandles<Option<MultibodyJointHandle>> {
+fn insert_urdf(
+    world: &mut PhysicsWorld,
+    model: &UrdfModel,
+) -> UrdfRobotHandles<Option<MultibodyJointHandle>> {
     let options = UrdfLoaderOptions {
         enable_joint_collisions: false,
         ..Default::default()
@@ -250,9 +256,17 @@ fn find_link_colliders(
     let mut thighs = [trunk; NUM_LEGS];
     let mut shanks = [trunk; NUM_LEGS];
     for leg in 0..NUM_LEGS {
-        let thigh_link = &handles.links[link_index(&format!("{}_thigh", hexapod_core::robot::LEG_NAMES[leg])).ok_or_else(|| structure(format!("no thigh link for leg {leg}")))?];
-        let shank_link = &handles.links[link_index(&format!("{}_shank", hexapod_core::robot::LEG_NAMES[leg])).ok_or_else(|| structure(format!("no shank link for leg {leg}")))?];
-        thighs[leg] = thigh_link.colliders.first().map(|c| c.handle).ok_or_else(|| structure(format!("leg {leg}: thigh has no collision shape")))?;
+        let thigh_link =
+            &handles.links[link_index(&format!("{}_thigh", hexapod_core::robot::LEG_NAMES[leg]))
+                .ok_or_else(|| structure(format!("no thigh link for leg {leg}")))?];
+        let shank_link =
+            &handles.links[link_index(&format!("{}_shank", hexapod_core::robot::LEG_NAMES[leg]))
+                .ok_or_else(|| structure(format!("no shank link for leg {leg}")))?];
+        thighs[leg] = thigh_link
+            .colliders
+            .first()
+            .map(|c| c.handle)
+            .ok_or_else(|| structure(format!("leg {leg}: thigh has no collision shape")))?;
         let mut foot = None;
         let mut shank = None;
         for c in &shank_link.colliders {
@@ -262,10 +276,18 @@ fn find_link_colliders(
                 shank = Some(c.handle);
             }
         }
-        feet[leg] = foot.ok_or_else(|| structure(format!("leg {leg}: shank has no foot sphere")))?;
-        shanks[leg] = shank.ok_or_else(|| structure(format!("leg {leg}: shank has no cylinder")))?;
+        feet[leg] =
+            foot.ok_or_else(|| structure(format!("leg {leg}: shank has no foot sphere")))?;
+        shanks[leg] =
+            shank.ok_or_else(|| structure(format!("leg {leg}: shank has no cylinder")))?;
     }
-    Ok(LinkColliders { base, trunk, feet, thighs, shanks })
+    Ok(LinkColliders {
+        base,
+        trunk,
+        feet,
+        thighs,
+        shanks,
+    })
 }
 
 /// Finds each joint of [`JOINT_NAMES`] in the URDF: its child and parent bodies and its axis.
@@ -274,9 +296,18 @@ fn find_joint_bodies(
     handles: &UrdfRobotHandles<Option<MultibodyJointHandle>>,
     base: RigidBodyHandle,
 ) -> Result<JointBodies, BuildError> {
-    let mut bodies = JointBodies { child_body: [base; NUM_JOINTS], parent_body: [base; NUM_JOINTS], axis_local: [Vector::X; NUM_JOINTS] };
+    let mut bodies = JointBodies {
+        child_body: [base; NUM_JOINTS],
+        parent_body: [base; NUM_JOINTS],
+        axis_local: [Vector::X; NUM_JOINTS],
+    };
     for (j, name) in JOINT_NAMES.iter().enumerate() {
-        let ji = model.robot.joints.iter().position(|jt| jt.name == *name).ok_or_else(|| structure_error(model, format!("no joint `{name}`")))?;
+        let ji = model
+            .robot
+            .joints
+            .iter()
+            .position(|jt| jt.name == *name)
+            .ok_or_else(|| structure_error(model, format!("no joint `{name}`")))?;
         let h = &handles.joints[ji];
         bodies.child_body[j] = h.link2;
         bodies.parent_body[j] = h.link1;
@@ -289,23 +320,41 @@ fn find_joint_bodies(
 /// Feet and trunk stay solid; thigh and shank shapes leave the physics and become probes
 /// (trunk first, then thighs, then shanks). The trunk costs the solver nothing while it is
 /// clear of the ground, and it lets an unpowered robot rest on its belly.
-fn make_probes(model: &UrdfModel, world: &mut PhysicsWorld, links: &LinkColliders) -> Result<Vec<Probe>, BuildError> {
+fn make_probes(
+    model: &UrdfModel,
+    world: &mut PhysicsWorld,
+    links: &LinkColliders,
+) -> Result<Vec<Probe>, BuildError> {
     let structure = |message: String| structure_error(model, message);
     let mut probes = Vec::with_capacity(1 + 2 * NUM_LEGS);
     let trunk_collider = &world.colliders[links.trunk];
     probes.push(Probe {
         body: links.base,
-        local_pose: trunk_collider.position_wrt_parent().copied().unwrap_or(Pose::IDENTITY),
+        local_pose: trunk_collider
+            .position_wrt_parent()
+            .copied()
+            .unwrap_or(Pose::IDENTITY),
         shape: trunk_collider.shared_shape().clone(),
     });
     for handle in links.thighs.into_iter().chain(links.shanks) {
         let collider = world
             .colliders
-            .remove(handle, &mut world.islands, &mut world.bodies, &mut world.soft_bodies, false)
+            .remove(
+                handle,
+                &mut world.islands,
+                &mut world.bodies,
+                &mut world.soft_bodies,
+                false,
+            )
             .ok_or_else(|| structure("collision shape vanished".into()))?;
         probes.push(Probe {
-            body: collider.parent().ok_or_else(|| structure("collision shape without a link".into()))?,
-            local_pose: collider.position_wrt_parent().copied().unwrap_or(Pose::IDENTITY),
+            body: collider
+                .parent()
+                .ok_or_else(|| structure("collision shape without a link".into()))?,
+            local_pose: collider
+                .position_wrt_parent()
+                .copied()
+                .unwrap_or(Pose::IDENTITY),
             shape: collider.shared_shape().clone(),
         });
     }
@@ -333,13 +382,22 @@ fn configure_joints(
     child_body: &[RigidBodyHandle; NUM_JOINTS],
 ) -> Result<([usize; NUM_JOINTS], [usize; NUM_JOINTS]), BuildError> {
     let structure = |message: String| structure_error(model, message);
-    let link_id = world.multibody_joints.rigid_body_link(base).ok_or_else(|| structure("base is not in a multibody".into()))?;
+    let link_id = world
+        .multibody_joints
+        .rigid_body_link(base)
+        .ok_or_else(|| structure("base is not in a multibody".into()))?;
     let mb_index = link_id.multibody;
     let mut link_of_joint = [0; NUM_JOINTS];
     let mut dof_of_joint = [0; NUM_JOINTS];
-    let mb = world.multibody_joints.get_multibody_mut(mb_index).ok_or_else(|| structure("no multibody".into()))?;
+    let mb = world
+        .multibody_joints
+        .get_multibody_mut(mb_index)
+        .ok_or_else(|| structure("no multibody".into()))?;
     for j in 0..NUM_JOINTS {
-        let link = mb.links().position(|l| l.rigid_body_handle() == child_body[j]).ok_or_else(|| structure(format!("joint {} not in multibody", JOINT_NAMES[j])))?;
+        let link = mb
+            .links()
+            .position(|l| l.rigid_body_handle() == child_body[j])
+            .ok_or_else(|| structure(format!("joint {} not in multibody", JOINT_NAMES[j])))?;
         link_of_joint[j] = link;
         dof_of_joint[j] = mb.link(link).map(|l| l.assembly_id()).unwrap_or(0);
     }
@@ -358,7 +416,10 @@ fn configure_joints(
 
 /// Every link's body with its mass properties as the URDF's shapes give them (the nominal
 /// masses that domain randomization scales).
-fn nominal_masses(world: &mut PhysicsWorld, handles: &UrdfRobotHandles<Option<MultibodyJointHandle>>) -> (Vec<RigidBodyHandle>, Vec<MassProperties>) {
+fn nominal_masses(
+    world: &mut PhysicsWorld,
+    handles: &UrdfRobotHandles<Option<MultibodyJointHandle>>,
+) -> (Vec<RigidBodyHandle>, Vec<MassProperties>) {
     let link_bodies: Vec<RigidBodyHandle> = handles.links.iter().map(|l| l.body).collect();
     let mut nominal_mass = Vec::with_capacity(link_bodies.len());
     for h in &link_bodies {
@@ -371,7 +432,11 @@ fn nominal_masses(world: &mut PhysicsWorld, handles: &UrdfRobotHandles<Option<Mu
 
 impl RobotWorld {
     /// Builds a world with `ground` and the robot of `model`, standing at the nominal pose.
-    pub fn new(model: &UrdfModel, ground: Collider, solver_iterations: usize) -> Result<Self, BuildError> {
+    pub fn new(
+        model: &UrdfModel,
+        ground: Collider,
+        solver_iterations: usize,
+    ) -> Result<Self, BuildError> {
         let mut world = physics_world(solver_iterations);
         let ground = world.colliders.insert(ground);
         let handles = insert_urdf(&mut world, model);
@@ -379,7 +444,8 @@ impl RobotWorld {
         let joints = find_joint_bodies(model, &handles, links.base)?;
         let probes = make_probes(model, &mut world, &links)?;
         set_contact_materials(&mut world, &links);
-        let (link_of_joint, dof_of_joint) = configure_joints(model, &mut world, links.base, &joints.child_body)?;
+        let (link_of_joint, dof_of_joint) =
+            configure_joints(model, &mut world, links.base, &joints.child_body)?;
         let (link_bodies, nominal_mass) = nominal_masses(&mut world, &handles);
         let mut robot = Self {
             world,
@@ -407,18 +473,43 @@ impl RobotWorld {
     }
 
     fn multibody(&self) -> &Multibody {
-        let link = self.world.multibody_joints.rigid_body_link(self.base).expect("base is a multibody root");
-        self.world.multibody_joints.get_multibody(link.multibody).expect("multibody exists")
+        let link = self
+            .world
+            .multibody_joints
+            .rigid_body_link(self.base)
+            .expect("base is a multibody root");
+        self.world
+            .multibody_joints
+            .get_multibody(link.multibody)
+            .expect("multibody exists")
     }
 
     fn multibody_mut(&mut self) -> &mut Multibody {
-        let link = *self.world.multibody_joints.rigid_body_link(self.base).expect("base is a multibody root");
-        self.world.multibody_joints.get_multibody_mut(link.multibody).expect("multibody exists")
+        let link = *self
+            .world
+            .multibody_joints
+            .rigid_body_link(self.base)
+            .expect("base is a multibody root");
+        self.world
+            .multibody_joints
+            .get_multibody_mut(link.multibody)
+            .expect("multibody exists")
     }
 
     /// Places the robot: base pose (world) and joint angles, all velocities zero.
-    pub fn reset(&mut self, base_pos_world_m: [f32; 3], base_quat_xyzw: [f32; 4], q_rad: &[f32; NUM_JOINTS]) {
-        let target_rot = Rotation::from_xyzw(base_quat_xyzw[0], base_quat_xyzw[1], base_quat_xyzw[2], base_quat_xyzw[3]).normalize();
+    pub fn reset(
+        &mut self,
+        base_pos_world_m: [f32; 3],
+        base_quat_xyzw: [f32; 4],
+        q_rad: &[f32; NUM_JOINTS],
+    ) {
+        let target_rot = Rotation::from_xyzw(
+            base_quat_xyzw[0],
+            base_quat_xyzw[1],
+            base_quat_xyzw[2],
+            base_quat_xyzw[3],
+        )
+        .normalize();
         let link_of_joint = self.link_of_joint;
         let dof_of_joint = self.dof_of_joint;
         let mb = self.multibody_mut();
@@ -435,14 +526,23 @@ impl RobotWorld {
         disp[4] = delta.y;
         disp[5] = delta.z;
         for j in 0..NUM_JOINTS {
-            let angle = mb.link(link_of_joint[j]).map(|l| l.joint().coords()[3]).unwrap_or(0.0);
+            let angle = mb
+                .link(link_of_joint[j])
+                .map(|l| l.joint().coords()[3])
+                .unwrap_or(0.0);
             disp[dof_of_joint[j]] = q_rad[j] - angle;
         }
         mb.apply_displacements(&disp);
         mb.generalized_velocity_mut().fill(0.0);
         let world = &mut self.world;
-        let link = *world.multibody_joints.rigid_body_link(self.base).expect("root");
-        let mb = world.multibody_joints.get_multibody_mut(link.multibody).expect("multibody");
+        let link = *world
+            .multibody_joints
+            .rigid_body_link(self.base)
+            .expect("root");
+        let mb = world
+            .multibody_joints
+            .get_multibody_mut(link.multibody)
+            .expect("multibody");
         mb.forward_kinematics(&world.bodies, false);
         mb.update_rigid_bodies(&mut world.bodies, true);
         let handles: Vec<RigidBodyHandle> = mb.links().map(|l| l.rigid_body_handle()).collect();
@@ -462,7 +562,10 @@ impl RobotWorld {
         let vel = mb.generalized_velocity();
         let mut s = RobotState::default();
         for j in 0..NUM_JOINTS {
-            s.q_rad[j] = mb.link(self.link_of_joint[j]).map(|l| l.joint().coords()[3]).unwrap_or(0.0);
+            s.q_rad[j] = mb
+                .link(self.link_of_joint[j])
+                .map(|l| l.joint().coords()[3])
+                .unwrap_or(0.0);
             s.qdot_rad_s[j] = vel[self.dof_of_joint[j]];
         }
         let rb = &self.world.bodies[self.base];
@@ -525,7 +628,9 @@ impl RobotWorld {
         let np = &self.world.narrow_phase;
         let mut forces = [[0.0; 3]; NUM_LEGS];
         for leg in 0..NUM_LEGS {
-            let Some(pair) = np.contact_pair(self.feet[leg], self.ground) else { continue };
+            let Some(pair) = np.contact_pair(self.feet[leg], self.ground) else {
+                continue;
+            };
             if !pair.has_any_active_contact() {
                 continue;
             }
@@ -541,15 +646,24 @@ impl RobotWorld {
 
     /// Foot forces and collision flags of the last step.
     pub fn contacts(&self) -> ContactState {
-        let mut c = ContactState { foot_force_world_n: self.foot_forces_world_n(), ..Default::default() };
+        let mut c = ContactState {
+            foot_force_world_n: self.foot_forces_world_n(),
+            ..Default::default()
+        };
         let ground = &self.world.colliders[self.ground];
         let touches = |probe: &Probe| {
             let pose = *self.world.bodies[probe.body].position() * probe.local_pose;
             // parry's contact query (GJK/EPA); its boolean intersection test misreports an
             // upright cylinder just above a cuboid as touching.
-            rapier3d::parry::query::contact(&pose, &*probe.shape, ground.position(), ground.shape(), 0.0)
-                .map(|hit| hit.is_some_and(|c| c.dist <= 0.0))
-                .unwrap_or(false)
+            rapier3d::parry::query::contact(
+                &pose,
+                &*probe.shape,
+                ground.position(),
+                ground.shape(),
+                0.0,
+            )
+            .map(|hit| hit.is_some_and(|c| c.dist <= 0.0))
+            .unwrap_or(false)
         };
         c.trunk = touches(&self.probes[0]);
         for leg in 0..NUM_LEGS {
@@ -569,13 +683,21 @@ impl RobotWorld {
         self.feet
             .iter()
             .filter_map(|f| self.world.narrow_phase.contact_pair(*f, self.ground))
-            .map(|p| p.solver_manifolds().iter().map(|m| m.data.solver_contacts.len()).sum::<usize>())
+            .map(|p| {
+                p.solver_manifolds()
+                    .iter()
+                    .map(|m| m.data.solver_contacts.len())
+                    .sum::<usize>()
+            })
             .sum()
     }
 
     /// Total mass of the robot, kg.
     pub fn total_mass_kg(&self) -> f32 {
-        self.multibody().links().map(|l| self.world.bodies[l.rigid_body_handle()].mass()).sum()
+        self.multibody()
+            .links()
+            .map(|l| self.world.bodies[l.rigid_body_handle()].mass())
+            .sum()
     }
 
     /// Sets the friction coefficient of all feet.
@@ -588,13 +710,22 @@ impl RobotWorld {
     /// Scales the mass of every link and adds `payload_kg` to the trunk at `payload_offset_m`
     /// (base frame). Factors apply to the URDF's nominal values each call.
     /// `link_mass_scale` has one factor per URDF link (in URDF order); missing ones are 1.
-    pub fn set_mass_properties(&mut self, link_mass_scale: &[f32], payload_kg: f32, payload_offset_base_m: [f32; 3]) {
+    pub fn set_mass_properties(
+        &mut self,
+        link_mass_scale: &[f32],
+        payload_kg: f32,
+        payload_offset_base_m: [f32; 3],
+    ) {
         for (i, h) in self.link_bodies.iter().enumerate() {
             let mut props = self.nominal_mass[i];
             let scale = link_mass_scale.get(i).copied().unwrap_or(1.0);
             props.set_mass(props.mass() * scale, true);
             if *h == self.base && payload_kg > 0.0 {
-                props += MassProperties::new(Vector::from(payload_offset_base_m), payload_kg, Vector::ZERO);
+                props += MassProperties::new(
+                    Vector::from(payload_offset_base_m),
+                    payload_kg,
+                    Vector::ZERO,
+                );
             }
             let rb = &mut self.world.bodies[*h];
             rb.set_additional_mass_properties(props, true);
@@ -611,7 +742,11 @@ impl RobotWorld {
             .map(|(h, name)| {
                 let pose = self.world.bodies[*h].position();
                 let (p, r) = (pose.translation, pose.rotation);
-                LinkPose { name, pos_world_m: [p.x, p.y, p.z], quat_world_xyzw: [r.x, r.y, r.z, r.w] }
+                LinkPose {
+                    name,
+                    pos_world_m: [p.x, p.y, p.z],
+                    quat_world_xyzw: [r.x, r.y, r.z, r.w],
+                }
             })
             .collect()
     }
@@ -622,25 +757,48 @@ impl RobotWorld {
     pub fn link_shapes(&self) -> Vec<LinkShape> {
         let solid = self.feet.iter().map(|h| {
             let c = &self.world.colliders[*h];
-            (c.parent().unwrap_or(self.base), c.position_wrt_parent().copied().unwrap_or(Pose::IDENTITY), c.shape())
+            (
+                c.parent().unwrap_or(self.base),
+                c.position_wrt_parent().copied().unwrap_or(Pose::IDENTITY),
+                c.shape(),
+            )
         });
-        let probes = self.probes.iter().map(|p| (p.body, p.local_pose, &*p.shape));
+        let probes = self
+            .probes
+            .iter()
+            .map(|p| (p.body, p.local_pose, &*p.shape));
         probes
             .chain(solid)
             .filter_map(|(body, pose, shape)| {
                 let link = self.link_bodies.iter().position(|h| *h == body)?;
                 let v = |v: Vector| [v.x, v.y, v.z];
                 let kind = if let Some(b) = shape.as_cuboid() {
-                    LinkShapeKind::Cuboid { half_extents_m: v(b.half_extents) }
+                    LinkShapeKind::Cuboid {
+                        half_extents_m: v(b.half_extents),
+                    }
                 } else if let Some(c) = shape.as_cylinder() {
-                    LinkShapeKind::Cylinder { half_height_m: c.half_height, radius_m: c.radius }
+                    LinkShapeKind::Cylinder {
+                        half_height_m: c.half_height,
+                        radius_m: c.radius,
+                    }
                 } else if let Some(c) = shape.as_capsule() {
-                    LinkShapeKind::Capsule { a_m: v(c.segment.a), b_m: v(c.segment.b), radius_m: c.radius }
+                    LinkShapeKind::Capsule {
+                        a_m: v(c.segment.a),
+                        b_m: v(c.segment.b),
+                        radius_m: c.radius,
+                    }
                 } else {
-                    LinkShapeKind::Ball { radius_m: shape.as_ball()?.radius }
+                    LinkShapeKind::Ball {
+                        radius_m: shape.as_ball()?.radius,
+                    }
                 };
                 let r = pose.rotation;
-                Some(LinkShape { link, pos_link_m: v(pose.translation), quat_link_xyzw: [r.x, r.y, r.z, r.w], kind })
+                Some(LinkShape {
+                    link,
+                    pos_link_m: v(pose.translation),
+                    quat_link_xyzw: [r.x, r.y, r.z, r.w],
+                    kind,
+                })
             })
             .collect()
     }
@@ -661,15 +819,28 @@ impl RobotWorld {
     /// Sets the base's velocity (its origin's linear velocity and the angular velocity,
     /// world frame) and the joint velocities; after [`RobotWorld::reset`], to start from a
     /// moving state (reference state initialization).
-    pub fn set_velocities(&mut self, lin_vel_world_m_s: [f32; 3], ang_vel_world_rad_s: [f32; 3], qdot_rad_s: &[f32; NUM_JOINTS]) {
+    pub fn set_velocities(
+        &mut self,
+        lin_vel_world_m_s: [f32; 3],
+        ang_vel_world_rad_s: [f32; 3],
+        qdot_rad_s: &[f32; NUM_JOINTS],
+    ) {
         let base = self.base;
         let (p, com) = {
             let rb = &self.world.bodies[base];
             (rb.translation(), rb.center_of_mass())
         };
-        let w = Vector::new(ang_vel_world_rad_s[0], ang_vel_world_rad_s[1], ang_vel_world_rad_s[2]);
+        let w = Vector::new(
+            ang_vel_world_rad_s[0],
+            ang_vel_world_rad_s[1],
+            ang_vel_world_rad_s[2],
+        );
         // The root's generalized velocity is its centre of mass's.
-        let v = Vector::new(lin_vel_world_m_s[0], lin_vel_world_m_s[1], lin_vel_world_m_s[2]) + w.cross(com - p);
+        let v = Vector::new(
+            lin_vel_world_m_s[0],
+            lin_vel_world_m_s[1],
+            lin_vel_world_m_s[2],
+        ) + w.cross(com - p);
         let dof_of_joint = self.dof_of_joint;
         {
             let mb = self.multibody_mut();
@@ -724,12 +895,20 @@ mod tests {
         r.step(&Q0_RAD);
         let s = r.state();
         let feet = hexapod_core::kinematics::foot_positions_base(&s.q_rad);
-        let rot = Rotation::from_xyzw(s.base_quat_xyzw[0], s.base_quat_xyzw[1], s.base_quat_xyzw[2], s.base_quat_xyzw[3]);
+        let rot = Rotation::from_xyzw(
+            s.base_quat_xyzw[0],
+            s.base_quat_xyzw[1],
+            s.base_quat_xyzw[2],
+            s.base_quat_xyzw[3],
+        );
         let base = Vector::from(s.base_pos_world_m);
         for leg in 0..NUM_LEGS {
             let sim = r.world.colliders[r.feet[leg]].translation();
             let core = base + rot * Vector::from(feet[leg]);
-            assert!((sim - core).length() < 1e-4, "leg {leg}: {sim:?} vs {core:?}");
+            assert!(
+                (sim - core).length() < 1e-4,
+                "leg {leg}: {sim:?} vs {core:?}"
+            );
         }
     }
 
@@ -746,17 +925,33 @@ mod tests {
         // Trunk, thigh and shank cylinders, foot spheres.
         assert_eq!(shapes.len(), 1 + 3 * NUM_LEGS);
         let [hx, hy, hz] = hexapod_core::robot::TRUNK_SIZE_M.map(|x| x / 2.0);
-        assert!(shapes.iter().any(|s| poses[s.link].name == "base" && s.kind == LinkShapeKind::Cuboid { half_extents_m: [hx, hy, hz] }));
+        assert!(shapes.iter().any(|s| poses[s.link].name == "base"
+            && s.kind
+                == LinkShapeKind::Cuboid {
+                    half_extents_m: [hx, hy, hz]
+                }));
         let feet = r.foot_positions_world_m();
         for (leg, name) in hexapod_core::robot::LEG_NAMES.iter().enumerate() {
-            let shank = poses.iter().position(|p| p.name == format!("{name}_shank")).unwrap();
-            let foot = shapes.iter().find(|s| s.link == shank && matches!(s.kind, LinkShapeKind::Ball { .. })).unwrap();
+            let shank = poses
+                .iter()
+                .position(|p| p.name == format!("{name}_shank"))
+                .unwrap();
+            let foot = shapes
+                .iter()
+                .find(|s| s.link == shank && matches!(s.kind, LinkShapeKind::Ball { .. }))
+                .unwrap();
             // The foot sphere placed by its link's world pose lands on the collider's centre.
             let p = &poses[shank];
             let q = p.quat_world_xyzw;
-            let world = Vector::from(p.pos_world_m) + Rotation::from_xyzw(q[0], q[1], q[2], q[3]) * Vector::from(foot.pos_link_m);
-            assert!((world - Vector::from(feet[leg])).length() < 1e-5, "leg {leg}");
-            assert!(shapes.iter().any(|s| s.link == shank && matches!(s.kind, LinkShapeKind::Cylinder { .. })));
+            let world = Vector::from(p.pos_world_m)
+                + Rotation::from_xyzw(q[0], q[1], q[2], q[3]) * Vector::from(foot.pos_link_m);
+            assert!(
+                (world - Vector::from(feet[leg])).length() < 1e-5,
+                "leg {leg}"
+            );
+            assert!(shapes
+                .iter()
+                .any(|s| s.link == shank && matches!(s.kind, LinkShapeKind::Cylinder { .. })));
         }
     }
 
@@ -774,14 +969,24 @@ mod tests {
     #[test]
     fn collision_flags_follow_the_link_shapes() {
         let mut r = flat_robot();
-        r.reset([0.0, 0.0, NOMINAL_BASE_HEIGHT_M], [0.0, 0.0, 0.0, 1.0], &Q0_RAD);
+        r.reset(
+            [0.0, 0.0, NOMINAL_BASE_HEIGHT_M],
+            [0.0, 0.0, 0.0, 1.0],
+            &Q0_RAD,
+        );
         let c = r.contacts();
-        assert!(!c.trunk && !c.thighs.iter().any(|t| *t) && !c.shanks.iter().any(|s| *s), "{c:?}");
+        assert!(
+            !c.trunk && !c.thighs.iter().any(|t| *t) && !c.shanks.iter().any(|s| *s),
+            "{c:?}"
+        );
         // Legs stretched out flat with the base low: thighs and shanks lie on the ground.
         r.reset([0.0, 0.0, 0.01], [0.0, 0.0, 0.0, 1.0], &[0.0; NUM_JOINTS]);
         let c = r.contacts();
         assert!(c.trunk, "trunk 5 cm into the ground");
-        assert!(c.thighs.iter().all(|t| *t) && c.shanks.iter().all(|s| *s), "{c:?}");
+        assert!(
+            c.thighs.iter().all(|t| *t) && c.shanks.iter().all(|s| *s),
+            "{c:?}"
+        );
         // Only the trunk low, legs folded up above it.
         let mut q = Q0_RAD;
         for leg in 0..NUM_LEGS {
@@ -805,7 +1010,10 @@ mod tests {
         }
         let q = r.state().q_rad[0];
         let limit = hexapod_core::robot::Q_MAX_RAD[0];
-        assert!(q > limit && q < limit + 0.1, "hip at {q} rad, limit {limit}");
+        assert!(
+            q > limit && q < limit + 0.1,
+            "hip at {q} rad, limit {limit}"
+        );
     }
 
     #[test]
@@ -824,8 +1032,18 @@ mod tests {
         let ground = &r.world.colliders[r.ground];
         let trunk = &r.probes[0];
         let pose = *r.world.bodies[trunk.body].position() * trunk.local_pose;
-        let gap = rapier3d::parry::query::contact(&pose, &*trunk.shape, ground.position(), ground.shape(), 0.01).unwrap();
-        assert!(gap.is_some_and(|c| c.dist < 0.01), "trunk clearance {gap:?}");
+        let gap = rapier3d::parry::query::contact(
+            &pose,
+            &*trunk.shape,
+            ground.position(),
+            ground.shape(),
+            0.01,
+        )
+        .unwrap();
+        assert!(
+            gap.is_some_and(|c| c.dist < 0.01),
+            "trunk clearance {gap:?}"
+        );
     }
 
     #[test]
@@ -849,13 +1067,23 @@ mod tests {
         }
         let s = r.state();
         let height = s.base_pos_world_m[2];
-        assert!((height - NOMINAL_BASE_HEIGHT_M).abs() < 0.02, "height {height}");
+        assert!(
+            (height - NOMINAL_BASE_HEIGHT_M).abs() < 0.02,
+            "height {height}"
+        );
         for j in 0..NUM_JOINTS {
-            assert!((s.q_rad[j] - Q0_RAD[j]).abs() < 0.05, "joint {j} drifted: {}", s.q_rad[j]);
+            assert!(
+                (s.q_rad[j] - Q0_RAD[j]).abs() < 0.05,
+                "joint {j} drifted: {}",
+                s.q_rad[j]
+            );
         }
         let c = r.contacts();
         let total_fz: f32 = c.foot_force_world_n.iter().map(|f| f[2]).sum();
-        assert!((total_fz - TOTAL_MASS_KG * 9.81).abs() < 0.1 * TOTAL_MASS_KG * 9.81, "fz {total_fz}");
+        assert!(
+            (total_fz - TOTAL_MASS_KG * 9.81).abs() < 0.1 * TOTAL_MASS_KG * 9.81,
+            "fz {total_fz}"
+        );
         assert!(!c.trunk);
     }
 }

@@ -112,18 +112,31 @@ impl Terrain {
     /// Generates the terrain described by `config`.
     pub fn generate(config: &TerrainConfig) -> Self {
         if !config.tiles {
-            return Self { config: config.clone(), nx: 0, ny: 0, heights_m: Vec::new() };
+            return Self {
+                config: config.clone(),
+                nx: 0,
+                ny: 0,
+                heights_m: Vec::new(),
+            };
         }
         let cell = config.cell_size_m;
         let extent_x = config.rows as f32 * config.tile_size_m + 2.0 * config.border_m;
         let extent_y = config.columns.len() as f32 * config.tile_size_m + 2.0 * config.border_m;
         let nx = (extent_x / cell).round() as usize + 1;
         let ny = (extent_y / cell).round() as usize + 1;
-        let mut terrain =
-            Self { config: config.clone(), nx, ny, heights_m: vec![0.0; nx * ny] };
+        let mut terrain = Self {
+            config: config.clone(),
+            nx,
+            ny,
+            heights_m: vec![0.0; nx * ny],
+        };
         let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
         for row in 0..config.rows {
-            let difficulty = if config.rows > 1 { row as f32 / (config.rows - 1) as f32 } else { 1.0 };
+            let difficulty = if config.rows > 1 {
+                row as f32 / (config.rows - 1) as f32
+            } else {
+                1.0
+            };
             for (col, kind) in config.columns.iter().enumerate() {
                 terrain.fill_tile(row, col, *kind, difficulty, &mut rng);
             }
@@ -134,9 +147,23 @@ impl Terrain {
     /// A terrain from a height grid (x-major, `ix * ny + iy`, `cell_size_m` apart, the grid
     /// point (0, 0) at the world origin) that is not a tile grid: the evaluation course.
     pub fn from_heights(cell_size_m: f32, nx: usize, ny: usize, heights_m: Vec<f32>) -> Self {
-        assert!(nx >= 2 && ny >= 2 && heights_m.len() == nx * ny, "a height grid needs at least 2 x 2 points");
-        let config = TerrainConfig { tiles: false, rows: 1, columns: Vec::new(), cell_size_m, ..TerrainConfig::default() };
-        Self { config, nx, ny, heights_m }
+        assert!(
+            nx >= 2 && ny >= 2 && heights_m.len() == nx * ny,
+            "a height grid needs at least 2 x 2 points"
+        );
+        let config = TerrainConfig {
+            tiles: false,
+            rows: 1,
+            columns: Vec::new(),
+            cell_size_m,
+            ..TerrainConfig::default()
+        };
+        Self {
+            config,
+            nx,
+            ny,
+            heights_m,
+        }
     }
 
     /// Difficulty in [0, 1] of a row.
@@ -157,8 +184,14 @@ impl Terrain {
             TileKind::Flat => "flat".into(),
             TileKind::SmoothSlope => format!("slope {:.0} deg down", c.max_slope_deg * d),
             TileKind::SmoothSlopeUp => format!("slope {:.0} deg up", c.max_slope_deg * d),
-            TileKind::RoughSlope => format!("slope {:.0} deg up, noise +-{:.2} m", c.max_slope_deg * d, c.rough_noise_m * (0.5 + d)),
-            TileKind::StairsUp | TileKind::StairsDown => format!("steps {:.2} m", step_height_m(c, d)),
+            TileKind::RoughSlope => format!(
+                "slope {:.0} deg up, noise +-{:.2} m",
+                c.max_slope_deg * d,
+                c.rough_noise_m * (0.5 + d)
+            ),
+            TileKind::StairsUp | TileKind::StairsDown => {
+                format!("steps {:.2} m", step_height_m(c, d))
+            }
             TileKind::DiscreteObstacles => format!("blocks +-{:.2} m", obstacle_height_m(c, d)),
         }
     }
@@ -175,7 +208,14 @@ impl Terrain {
         ]
     }
 
-    fn fill_tile(&mut self, row: usize, col: usize, kind: TileKind, difficulty: f32, rng: &mut ChaCha8Rng) {
+    fn fill_tile(
+        &mut self,
+        row: usize,
+        col: usize,
+        kind: TileKind,
+        difficulty: f32,
+        rng: &mut ChaCha8Rng,
+    ) {
         let c = self.config.clone();
         let [cx, cy] = self.tile_center_m(row, col);
         let half = c.tile_size_m / 2.0;
@@ -192,7 +232,10 @@ impl Terrain {
                     let y = cy + rng.gen_range(-half..half);
                     [x, y, w, l, h * if rng.gen_bool(0.5) { 1.0 } else { -1.0 }]
                 })
-                .filter(|o| (o[0] - cx).abs() > platform_half_m + o[2] || (o[1] - cy).abs() > platform_half_m + o[3])
+                .filter(|o| {
+                    (o[0] - cx).abs() > platform_half_m + o[2]
+                        || (o[1] - cy).abs() > platform_half_m + o[3]
+                })
                 .collect()
         } else {
             Vec::new()
@@ -201,7 +244,9 @@ impl Terrain {
         const NOISE_CELL_M: f32 = 0.2;
         let noise_n = (c.tile_size_m / NOISE_CELL_M).ceil() as usize + 2;
         let noise: Vec<f32> = if kind == TileKind::RoughSlope {
-            (0..noise_n * noise_n).map(|_| rng.gen_range(-1.0..1.0) * c.rough_noise_m).collect()
+            (0..noise_n * noise_n)
+                .map(|_| rng.gen_range(-1.0..1.0) * c.rough_noise_m)
+                .collect()
         } else {
             Vec::new()
         };
@@ -211,7 +256,8 @@ impl Terrain {
             let (i, j) = (fx as usize, fy as usize);
             let (tx, ty) = (fx - i as f32, fy - j as f32);
             let n = |a: usize, b: usize| noise[a * noise_n + b];
-            (n(i, j) * (1.0 - ty) + n(i, j + 1) * ty) * (1.0 - tx) + (n(i + 1, j) * (1.0 - ty) + n(i + 1, j + 1) * ty) * tx
+            (n(i, j) * (1.0 - ty) + n(i, j + 1) * ty) * (1.0 - tx)
+                + (n(i + 1, j) * (1.0 - ty) + n(i + 1, j + 1) * ty) * tx
         };
         let (ix0, ix1) = self.index_range(cx - half, cx + half, true);
         let (iy0, iy1) = self.index_range(cy - half, cy + half, false);
@@ -297,7 +343,11 @@ mod tests {
     use super::*;
 
     fn tiles() -> Terrain {
-        Terrain::generate(&TerrainConfig { tiles: true, rows: 4, ..Default::default() })
+        Terrain::generate(&TerrainConfig {
+            tiles: true,
+            rows: 4,
+            ..Default::default()
+        })
     }
 
     #[test]
@@ -308,22 +358,40 @@ mod tests {
         let up = cols.iter().position(|k| *k == TileKind::StairsUp).unwrap();
         let [cx, cy] = t.tile_center_m(row, up);
         // Walk outward along x across several steps; each riser is 0.20 m.
-        let mut heights: Vec<f32> = (0..60).map(|k| t.height_at_m(cx + 1.0 + k as f32 * 0.05, cy)).collect();
+        let mut heights: Vec<f32> = (0..60)
+            .map(|k| t.height_at_m(cx + 1.0 + k as f32 * 0.05, cy))
+            .collect();
         heights.dedup_by(|a, b| (*a - *b).abs() < 1e-4);
-        let risers: Vec<f32> = heights.windows(2).map(|w| w[1] - w[0]).filter(|d| d.abs() > 0.05).collect();
+        let risers: Vec<f32> = heights
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .filter(|d| d.abs() > 0.05)
+            .collect();
         assert!(!risers.is_empty());
         for r in risers {
             assert!((r - 0.20).abs() < 1e-3, "riser {r}");
         }
-        let slope = cols.iter().position(|k| *k == TileKind::SmoothSlope).unwrap();
+        let slope = cols
+            .iter()
+            .position(|k| *k == TileKind::SmoothSlope)
+            .unwrap();
         let [cx, cy] = t.tile_center_m(row, slope);
         let dh = t.height_at_m(cx + 2.0, cy) - t.height_at_m(cx + 3.0, cy);
-        assert!((dh.atan().to_degrees() - 30.0).abs() < 0.5, "{}", dh.atan().to_degrees());
+        assert!(
+            (dh.atan().to_degrees() - 30.0).abs() < 0.5,
+            "{}",
+            dh.atan().to_degrees()
+        );
     }
 
     #[test]
     fn smooth_uphill_slope_climbs_outward_at_the_rows_angle() {
-        let t = Terrain::generate(&TerrainConfig { tiles: true, rows: 4, columns: vec![TileKind::SmoothSlopeUp], ..Default::default() });
+        let t = Terrain::generate(&TerrainConfig {
+            tiles: true,
+            rows: 4,
+            columns: vec![TileKind::SmoothSlopeUp],
+            ..Default::default()
+        });
         for row in 0..4 {
             let [cx, cy] = t.tile_center_m(row, 0);
             let want_deg = t.config.max_slope_deg * t.difficulty(row);
@@ -331,7 +399,10 @@ mod tests {
             for (dx, dy) in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0)] {
                 let h = |r: f32| t.height_at_m(cx + dx * r, cy + dy * r);
                 let deg = (h(3.0) - h(2.0)).atan().to_degrees();
-                assert!((deg - want_deg).abs() < 0.05, "row {row}: {deg} deg, want {want_deg}");
+                assert!(
+                    (deg - want_deg).abs() < 0.05,
+                    "row {row}: {deg} deg, want {want_deg}"
+                );
             }
             assert_eq!(t.height_at_m(cx, cy), 0.0, "the centre platform is level");
             assert!(t.feature(TileKind::SmoothSlopeUp, row).ends_with("deg up"));
@@ -341,7 +412,12 @@ mod tests {
     #[test]
     fn easiest_row_is_gentle() {
         let t = tiles();
-        let slope = t.config.columns.iter().position(|k| *k == TileKind::SmoothSlope).unwrap();
+        let slope = t
+            .config
+            .columns
+            .iter()
+            .position(|k| *k == TileKind::SmoothSlope)
+            .unwrap();
         let [cx, cy] = t.tile_center_m(0, slope);
         assert!((t.height_at_m(cx + 3.0, cy)).abs() < 1e-4);
     }
@@ -360,7 +436,11 @@ mod collider_tests {
 
     #[test]
     fn collider_surface_matches_the_height_lookup() {
-        let t = Terrain::generate(&TerrainConfig { tiles: true, rows: 4, ..Default::default() });
+        let t = Terrain::generate(&TerrainConfig {
+            tiles: true,
+            rows: 4,
+            ..Default::default()
+        });
         let ground = t.collider();
         let mut worst = 0.0f32;
         for row in 0..4 {
@@ -370,23 +450,38 @@ mod collider_tests {
                     // Off-lattice points (a lattice point hides a transposed or shifted grid).
                     let x = cx - 3.0 + (k % 20) as f32 * 0.3137;
                     let y = cy - 3.0 + (k / 20) as f32 * 0.2971;
-                    let ray = Ray::new(Vector::new(x, y, 5.0).into(), Vector::new(1e-4, 1e-4, -1.0).normalize());
+                    let ray = Ray::new(
+                        Vector::new(x, y, 5.0),
+                        Vector::new(1e-4, 1e-4, -1.0).normalize(),
+                    );
                     // A ray straight down misses parry's heightfield: tilt it by 1e-4.
-                    let toi = ground.shape().cast_ray(ground.position(), &ray, 20.0, true).expect("ray hits the ground");
+                    let toi = ground
+                        .shape()
+                        .cast_ray(ground.position(), &ray, 20.0, true)
+                        .expect("ray hits the ground");
                     let z = 5.0 - toi;
                     // Within one cell the two triangles and the bilinear lookup agree where
                     // the cell's corners are level, and differ by less than its corners'
                     // spread (a riser crossing the cell) elsewhere.
                     let cell = t.config.cell_size_m;
                     let (ix, iy) = ((x / cell) as usize, (y / cell) as usize);
-                    let corners = [(ix, iy), (ix + 1, iy), (ix, iy + 1), (ix + 1, iy + 1)].map(|(i, j)| t.heights_m[i * t.ny + j]);
-                    let spread = corners.iter().cloned().fold(f32::MIN, f32::max) - corners.iter().cloned().fold(f32::MAX, f32::min);
+                    let corners = [(ix, iy), (ix + 1, iy), (ix, iy + 1), (ix + 1, iy + 1)]
+                        .map(|(i, j)| t.heights_m[i * t.ny + j]);
+                    let spread = corners.iter().cloned().fold(f32::MIN, f32::max)
+                        - corners.iter().cloned().fold(f32::MAX, f32::min);
                     let error = (z - t.height_at_m(x, y)).abs();
-                    assert!(error <= spread + 2e-3, "at ({x}, {y}): collider {z} m, lookup {} m", t.height_at_m(x, y));
+                    assert!(
+                        error <= spread + 2e-3,
+                        "at ({x}, {y}): collider {z} m, lookup {} m",
+                        t.height_at_m(x, y)
+                    );
                     worst = worst.max(error - spread);
                 }
             }
         }
-        assert!(worst < 2e-3, "collider and height lookup differ by {worst} m beyond the cells' spread");
+        assert!(
+            worst < 2e-3,
+            "collider and height lookup differ by {worst} m beyond the cells' spread"
+        );
     }
 }

@@ -46,7 +46,10 @@ impl Trajectory {
 
     /// Base velocity in the base frame of every sample.
     pub fn lin_vel_base(&self) -> Vec<[f32; 3]> {
-        self.samples.iter().map(|s| rotate_inverse(s.state.base_quat_xyzw, s.state.base_lin_vel_world_m_s)).collect()
+        self.samples
+            .iter()
+            .map(|s| rotate_inverse(s.state.base_quat_xyzw, s.state.base_lin_vel_world_m_s))
+            .collect()
     }
 
     /// Writes one row per sample.
@@ -60,7 +63,11 @@ impl Trajectory {
         for (s, v) in self.samples.iter().zip(self.lin_vel_base()) {
             let st = &s.state;
             let w = rotate_inverse(st.base_quat_xyzw, st.base_ang_vel_world_rad_s);
-            write!(f, "{:.4},{:.5},{:.5},{:.5}", s.time_s, st.base_pos_world_m[0], st.base_pos_world_m[1], st.base_pos_world_m[2])?;
+            write!(
+                f,
+                "{:.4},{:.5},{:.5},{:.5}",
+                s.time_s, st.base_pos_world_m[0], st.base_pos_world_m[1], st.base_pos_world_m[2]
+            )?;
             for q in st.base_quat_xyzw {
                 write!(f, ",{q:.5}")?;
             }
@@ -81,7 +88,10 @@ impl Trajectory {
     pub fn write_plots(&self, dir: &Path) -> anyhow::Result<()> {
         let t: Vec<f32> = self.samples.iter().map(|s| s.time_s).collect();
         let v = self.lin_vel_base();
-        let wz = self.samples.iter().map(|s| rotate_inverse(s.state.base_quat_xyzw, s.state.base_ang_vel_world_rad_s)[2]);
+        let wz = self
+            .samples
+            .iter()
+            .map(|s| rotate_inverse(s.state.base_quat_xyzw, s.state.base_ang_vel_world_rad_s)[2]);
         let cmd = |k: usize| trace(&t, self.samples.iter().map(move |s| s.command[k]));
         let (roll, pitch): (Vec<f32>, Vec<f32>) = self
             .samples
@@ -93,24 +103,52 @@ impl Trajectory {
             .unzip();
         let (vx_color, vy_color) = (COLORS[0], COLORS[1]);
         let panels = [
-            Panel::new("base height above the terrain", "time (s)", "base height (m)")
-                .line(Line::nth(0, "height", trace(&t, self.samples.iter().map(|s| s.height_m)))),
-            Panel::new("base velocity (base frame): measured, command dashed", "time (s)", "velocity (m/s)")
-                .line(Line::new("vx", trace(&t, v.iter().map(|v| v[0])), vx_color))
-                .line(Line::new("vx command", cmd(0), vx_color).dashed())
-                .line(Line::new("vy", trace(&t, v.iter().map(|v| v[1])), vy_color))
-                .line(Line::new("vy command", cmd(1), vy_color).dashed()),
-            Panel::new("yaw rate (base frame): measured, command dashed", "time (s)", "yaw rate (rad/s)")
-                .line(Line::new("wz", trace(&t, wz), COLORS[2]))
-                .line(Line::new("wz command", cmd(2), COLORS[2]).dashed()),
+            Panel::new(
+                "base height above the terrain",
+                "time (s)",
+                "base height (m)",
+            )
+            .line(Line::nth(
+                0,
+                "height",
+                trace(&t, self.samples.iter().map(|s| s.height_m)),
+            )),
+            Panel::new(
+                "base velocity (base frame): measured, command dashed",
+                "time (s)",
+                "velocity (m/s)",
+            )
+            .line(Line::new("vx", trace(&t, v.iter().map(|v| v[0])), vx_color))
+            .line(Line::new("vx command", cmd(0), vx_color).dashed())
+            .line(Line::new("vy", trace(&t, v.iter().map(|v| v[1])), vy_color))
+            .line(Line::new("vy command", cmd(1), vy_color).dashed()),
+            Panel::new(
+                "yaw rate (base frame): measured, command dashed",
+                "time (s)",
+                "yaw rate (rad/s)",
+            )
+            .line(Line::new("wz", trace(&t, wz), COLORS[2]))
+            .line(Line::new("wz command", cmd(2), COLORS[2]).dashed()),
             Panel::new("attitude", "time (s)", "angle (deg)")
                 .line(Line::nth(0, "roll", trace(&t, roll)))
                 .line(Line::nth(1, "pitch", trace(&t, pitch))),
         ];
         write_panels(&dir.join("motion.png"), None, 1, (1000, 270), &panels)?;
         let masks: Vec<u8> = self.samples.iter().map(|s| s.contact_mask).collect();
-        let dt_s = if t.len() > 1 { t[1] - t[0] } else { hexapod_core::timing::POLICY_DT_S };
-        write_gait(&dir.join("gait.png"), &Gait { title: "gait diagram: feet in stance", time_s: &t, stance_masks: &masks, dt_s })?;
+        let dt_s = if t.len() > 1 {
+            t[1] - t[0]
+        } else {
+            hexapod_core::timing::POLICY_DT_S
+        };
+        write_gait(
+            &dir.join("gait.png"),
+            &Gait {
+                title: "gait diagram: feet in stance",
+                time_s: &t,
+                stance_masks: &masks,
+                dt_s,
+            },
+        )?;
         Ok(())
     }
 }

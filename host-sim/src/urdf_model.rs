@@ -63,8 +63,10 @@ pub fn default_urdf_path() -> PathBuf {
 impl UrdfModel {
     /// Reads, parses and checks a URDF file.
     pub fn load(path: &Path) -> Result<Self, UrdfError> {
-        let xml = std::fs::read_to_string(path)
-            .map_err(|source| UrdfError::Io { path: path.to_owned(), source })?;
+        let xml = std::fs::read_to_string(path).map_err(|source| UrdfError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
         Self::from_xml(path, xml)
     }
 
@@ -85,21 +87,38 @@ impl UrdfModel {
             .ok()
             .filter(|a| a.is_finite() && *a >= 0.0)
             .ok_or_else(|| {
-                field_err("robot / hexapod:armature".into(), "not a non-negative number".into())
+                field_err(
+                    "robot / hexapod:armature".into(),
+                    "not a non-negative number".into(),
+                )
             })?;
 
         for (i, name) in JOINT_NAMES.iter().enumerate() {
-            let joint = robot.joints.iter().find(|j| j.name == *name).ok_or_else(|| {
-                field_err(format!("joint {name}"), "missing (hexapod-core expects it)".into())
-            })?;
+            let joint = robot
+                .joints
+                .iter()
+                .find(|j| j.name == *name)
+                .ok_or_else(|| {
+                    field_err(
+                        format!("joint {name}"),
+                        "missing (hexapod-core expects it)".into(),
+                    )
+                })?;
             if !matches!(joint.joint_type, urdf_rs::JointType::Revolute) {
-                return Err(field_err(format!("joint {name} / type"), "must be revolute".into()));
+                return Err(field_err(
+                    format!("joint {name} / type"),
+                    "must be revolute".into(),
+                ));
             }
             let checks = [
                 ("limit.lower", joint.limit.lower, Q_MIN_RAD[i]),
                 ("limit.upper", joint.limit.upper, Q_MAX_RAD[i]),
                 ("limit.effort", joint.limit.effort, TORQUE_LIMIT_NM[i]),
-                ("limit.velocity", joint.limit.velocity, VELOCITY_LIMIT_RAD_S[i]),
+                (
+                    "limit.velocity",
+                    joint.limit.velocity,
+                    VELOCITY_LIMIT_RAD_S[i],
+                ),
             ];
             for (field, urdf_value, core_value) in checks {
                 if (urdf_value as f32 - core_value).abs() > 1e-3 {
@@ -131,10 +150,18 @@ impl UrdfModel {
         if robot.joints.len() != NUM_JOINTS {
             return Err(field_err(
                 "joint".into(),
-                format!("{} joints, hexapod-core has {NUM_JOINTS}", robot.joints.len()),
+                format!(
+                    "{} joints, hexapod-core has {NUM_JOINTS}",
+                    robot.joints.len()
+                ),
             ));
         }
-        Ok(Self { path: path.to_owned(), xml, robot, armature_kg_m2 })
+        Ok(Self {
+            path: path.to_owned(),
+            xml,
+            robot,
+            armature_kg_m2,
+        })
     }
 }
 
@@ -143,15 +170,21 @@ impl UrdfModel {
 /// simulator builds one reduced-coordinate multibody along it).
 fn check_tree(robot: &urdf_rs::Robot) -> Result<(), (String, String)> {
     use std::collections::HashMap;
-    let links: std::collections::HashSet<&str> = robot.links.iter().map(|l| l.name.as_str()).collect();
+    let links: std::collections::HashSet<&str> =
+        robot.links.iter().map(|l| l.name.as_str()).collect();
     let mut parent_of: HashMap<&str, &str> = HashMap::new();
     for joint in &robot.joints {
         for (end, link) in [("parent", &joint.parent.link), ("child", &joint.child.link)] {
             if !links.contains(link.as_str()) {
-                return Err((format!("joint {} / {end}", joint.name), format!("no link named `{link}`")));
+                return Err((
+                    format!("joint {} / {end}", joint.name),
+                    format!("no link named `{link}`"),
+                ));
             }
         }
-        if let Some(previous) = parent_of.insert(joint.child.link.as_str(), joint.parent.link.as_str()) {
+        if let Some(previous) =
+            parent_of.insert(joint.child.link.as_str(), joint.parent.link.as_str())
+        {
             return Err((
                 format!("joint {} / child", joint.name),
                 format!(
@@ -162,18 +195,29 @@ fn check_tree(robot: &urdf_rs::Robot) -> Result<(), (String, String)> {
         }
     }
     if parent_of.contains_key("base") {
-        return Err(("link base".into(), "the root link `base` is a joint's child".into()));
+        return Err((
+            "link base".into(),
+            "the root link `base` is a joint's child".into(),
+        ));
     }
     for link in &robot.links {
         let (mut current, mut steps) = (link.name.as_str(), 0);
         while current != "base" {
             current = match parent_of.get(current) {
                 Some(parent) => parent,
-                None => return Err((format!("link {}", link.name), "not connected to `base`".into())),
+                None => {
+                    return Err((
+                        format!("link {}", link.name),
+                        "not connected to `base`".into(),
+                    ))
+                }
             };
             steps += 1;
             if steps > robot.links.len() {
-                return Err((format!("link {}", link.name), "on a kinematic loop (the model must be a tree)".into()));
+                return Err((
+                    format!("link {}", link.name),
+                    "on a kinematic loop (the model must be a tree)".into(),
+                ));
             }
         }
     }
@@ -206,14 +250,21 @@ mod tests {
     #[test]
     fn wrong_limit_is_named() {
         let xml = shipped().replacen("effort=\"30\"", "effort=\"31\"", 1);
-        let err = UrdfModel::from_xml(Path::new("bad.urdf"), xml).unwrap_err().to_string();
-        assert!(err.contains("bad.urdf") && err.contains("rf_hip") && err.contains("effort"), "{err}");
+        let err = UrdfModel::from_xml(Path::new("bad.urdf"), xml)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("bad.urdf") && err.contains("rf_hip") && err.contains("effort"),
+            "{err}"
+        );
     }
 
     #[test]
     fn missing_joint_is_named() {
         let xml = shipped().replace("name=\"lr_shank\"", "name=\"lr_knee\"");
-        let err = UrdfModel::from_xml(Path::new("bad.urdf"), xml).unwrap_err().to_string();
+        let err = UrdfModel::from_xml(Path::new("bad.urdf"), xml)
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("lr_shank"), "{err}");
     }
 
@@ -237,13 +288,17 @@ mod tests {
         let s2 = second + marker.len();
         let e2 = s2 + xml[s2..].find('"').unwrap();
         let looped = format!("{}{}{}", &xml[..s2], first_child, &xml[e2..]);
-        let err = UrdfModel::from_xml(Path::new("looped.urdf"), looped).unwrap_err().to_string();
+        let err = UrdfModel::from_xml(Path::new("looped.urdf"), looped)
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("looped.urdf") && err.contains("loop"), "{err}");
     }
 
     #[test]
     fn missing_file_is_named() {
-        let err = UrdfModel::load(Path::new("nowhere.urdf")).unwrap_err().to_string();
+        let err = UrdfModel::load(Path::new("nowhere.urdf"))
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("nowhere.urdf"), "{err}");
     }
 }

@@ -70,5 +70,9 @@ pub trait VecEnv {
     fn set_command(&mut self, i: usize, command: [f32; 3]);
     /// Reference states that episodes may start from (reference state initialization);
     /// environments without it ignore them.
-    fn set_reference_states(&mut self, _states: std::sync::Arc<[crate::reference::ReferenceState]>) {}
+    fn set_reference_states(
+        &mut self,
+        _states: std::sync::Arc<[crate::reference::ReferenceState]>,
+    ) {
+    }
 }

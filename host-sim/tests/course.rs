@@ -17,8 +17,12 @@ const SLOPES_DEG: [f32; 6] = [5.0, 10.0, 15.0, 20.0, 25.0, 30.0];
 fn paper_features() -> Vec<Feature> {
     let mut f = Vec::new();
     for cm in STEPS_CM {
-        f.push(Feature::StairsUp { step_height_m: cm / 100.0 });
-        f.push(Feature::StairsDown { step_height_m: cm / 100.0 });
+        f.push(Feature::StairsUp {
+            step_height_m: cm / 100.0,
+        });
+        f.push(Feature::StairsDown {
+            step_height_m: cm / 100.0,
+        });
     }
     for deg in SLOPES_DEG {
         f.push(Feature::SlopeUp { slope_deg: deg });
@@ -38,28 +42,55 @@ fn risers_and_slopes_are_exact_in_the_height_lookup() {
         let h = |along: f32| t.height_at_m(edge + along, y);
         // The run-up is level and at zero.
         for k in 0..20 {
-            assert_eq!(t.height_at_m(course.start_pose(lane).position_m[0] - 0.9 + k as f32 * 0.09, y), 0.0);
+            assert_eq!(
+                t.height_at_m(
+                    course.start_pose(lane).position_m[0] - 0.9 + k as f32 * 0.09,
+                    y
+                ),
+                0.0
+            );
         }
         match *feature {
             Feature::StairsUp { step_height_m } | Feature::StairsDown { step_height_m } => {
-                let sign = if matches!(feature, Feature::StairsUp { .. }) { 1.0 } else { -1.0 };
+                let sign = if matches!(feature, Feature::StairsUp { .. }) {
+                    1.0
+                } else {
+                    -1.0
+                };
                 // Tread centres: k risers climbed (or descended) after k treads.
                 let flights = (FEATURE_LENGTH_M / TREAD_M).floor() as usize;
                 for k in 1..=flights {
                     let centre = (k as f32 - 0.5) * TREAD_M + 0.025;
                     let want = sign * step_height_m * k as f32;
-                    assert!((h(centre) - want).abs() < 1e-5, "{}: tread {k} at {} m, want {want}", feature.describe(), h(centre));
+                    assert!(
+                        (h(centre) - want).abs() < 1e-5,
+                        "{}: tread {k} at {} m, want {want}",
+                        feature.describe(),
+                        h(centre)
+                    );
                     // The tread is level from its riser's top to the next riser.
                     assert!((h(centre - 0.1) - h(centre + 0.1)).abs() < 1e-6);
                 }
                 let riser = h(TREAD_M + 0.1) - h(TREAD_M - 0.1);
-                assert!((riser - sign * step_height_m).abs() < 1e-5, "{}: riser {riser}", feature.describe());
+                assert!(
+                    (riser - sign * step_height_m).abs() < 1e-5,
+                    "{}: riser {riser}",
+                    feature.describe()
+                );
             }
             Feature::SlopeUp { slope_deg } | Feature::SlopeDown { slope_deg } => {
-                let sign = if matches!(feature, Feature::SlopeUp { .. }) { 1.0 } else { -1.0 };
+                let sign = if matches!(feature, Feature::SlopeUp { .. }) {
+                    1.0
+                } else {
+                    -1.0
+                };
                 for (a, b) in [(0.5f32, 1.5f32), (1.13, 3.71), (2.0, 4.9)] {
                     let deg = ((h(b) - h(a)) / (b - a)).atan().to_degrees();
-                    assert!((deg - sign * slope_deg).abs() < 0.01, "{}: {deg} deg", feature.describe());
+                    assert!(
+                        (deg - sign * slope_deg).abs() < 0.01,
+                        "{}: {deg} deg",
+                        feature.describe()
+                    );
                 }
                 // Level landing after the ramp.
                 assert!((h(FEATURE_LENGTH_M + 0.5) - h(FEATURE_LENGTH_M + 2.0)).abs() < 1e-5);
@@ -84,26 +115,58 @@ fn collider_surface_is_the_height_lookup_on_the_course() {
             // Off-lattice points on treads and ramps, away from the risers' one-cell ramps.
             let x = edge + 0.1 + k as f32 * 0.1173;
             let along = (x - edge) % TREAD_M;
-            if along < 0.06 && !matches!(course.features()[lane], Feature::SlopeUp { .. } | Feature::SlopeDown { .. }) {
+            if along < 0.06
+                && !matches!(
+                    course.features()[lane],
+                    Feature::SlopeUp { .. } | Feature::SlopeDown { .. }
+                )
+            {
                 continue;
             }
-            let ray = Ray::new(Vector::new(x, y, 5.0).into(), Vector::new(1e-4, 1e-4, -1.0).normalize());
-            let toi = ground.shape().cast_ray(ground.position(), &ray, 20.0, true).expect("ray hits the ground");
+            let ray = Ray::new(
+                Vector::new(x, y, 5.0),
+                Vector::new(1e-4, 1e-4, -1.0).normalize(),
+            );
+            let toi = ground
+                .shape()
+                .cast_ray(ground.position(), &ray, 20.0, true)
+                .expect("ray hits the ground");
             let z = 5.0 - toi;
-            assert!((z - t.height_at_m(x, y)).abs() < 2e-3, "lane {lane} at x {x}: collider {z}, lookup {}", t.height_at_m(x, y));
+            assert!(
+                (z - t.height_at_m(x, y)).abs() < 2e-3,
+                "lane {lane} at x {x}: collider {z}, lookup {}",
+                t.height_at_m(x, y)
+            );
         }
     }
 }
 
 #[test]
 fn robots_start_at_their_spawn_pose_facing_it_and_stand() {
-    let features = [Feature::StairsUp { step_height_m: 0.2 }, Feature::SlopeDown { slope_deg: 30.0 }, Feature::Flat];
+    let features = [
+        Feature::StairsUp { step_height_m: 0.2 },
+        Feature::SlopeDown { slope_deg: 30.0 },
+        Feature::Flat,
+    ];
     let course = Course::new(&features);
-    let mut cfg = EnvConfig { num_envs: 4, observation_noise: false, curriculum: false, ..Default::default() };
+    let mut cfg = EnvConfig {
+        num_envs: 4,
+        observation_noise: false,
+        curriculum: false,
+        ..Default::default()
+    };
     cfg.push.enabled = false;
     cfg.randomization.enabled = false;
     let mut env = HexapodEnv::with_terrain(cfg, course.terrain().clone()).unwrap();
-    let poses = [course.start_pose(0), course.start_pose(1), course.start_pose(2), SpawnPose { position_m: [3.0, 9.0], yaw_rad: 1.2 }];
+    let poses = [
+        course.start_pose(0),
+        course.start_pose(1),
+        course.start_pose(2),
+        SpawnPose {
+            position_m: [3.0, 9.0],
+            yaw_rad: 1.2,
+        },
+    ];
     for (i, pose) in poses.iter().enumerate() {
         env.set_spawn_pose(i, Some(*pose));
     }
@@ -111,8 +174,14 @@ fn robots_start_at_their_spawn_pose_facing_it_and_stand() {
     for (i, pose) in poses.iter().enumerate() {
         let s = env.robot_state(i);
         assert_eq!(env.spawn_position_m(i), pose.position_m);
-        assert!((s.base_pos_world_m[0] - pose.position_m[0]).abs() < 1e-5 && (s.base_pos_world_m[1] - pose.position_m[1]).abs() < 1e-5);
-        assert!((yaw_rad(s.base_quat_xyzw) - pose.yaw_rad).abs() < 1e-5, "robot {i} heading");
+        assert!(
+            (s.base_pos_world_m[0] - pose.position_m[0]).abs() < 1e-5
+                && (s.base_pos_world_m[1] - pose.position_m[1]).abs() < 1e-5
+        );
+        assert!(
+            (yaw_rad(s.base_quat_xyzw) - pose.yaw_rad).abs() < 1e-5,
+            "robot {i} heading"
+        );
     }
     for step in 0..100 {
         let r = env.step(&vec![0.0; 4 * NUM_JOINTS]);
@@ -121,9 +190,16 @@ fn robots_start_at_their_spawn_pose_facing_it_and_stand() {
     for (i, pose) in poses.iter().enumerate() {
         let s = env.robot_state(i);
         let [x, y] = pose.position_m;
-        assert!((s.base_pos_world_m[0] - x).hypot(s.base_pos_world_m[1] - y) < 0.1, "robot {i} drifted");
+        assert!(
+            (s.base_pos_world_m[0] - x).hypot(s.base_pos_world_m[1] - y) < 0.1,
+            "robot {i} drifted"
+        );
         let ground = env.terrain().height_at_m(x, y);
-        assert!((s.base_pos_world_m[2] - ground - 0.30).abs() < 0.03, "robot {i} stands at {} m", s.base_pos_world_m[2] - ground);
+        assert!(
+            (s.base_pos_world_m[2] - ground - 0.30).abs() < 0.03,
+            "robot {i} stands at {} m",
+            s.base_pos_world_m[2] - ground
+        );
     }
 }
 
@@ -131,7 +207,11 @@ fn robots_start_at_their_spawn_pose_facing_it_and_stand() {
 fn a_spawn_pose_moves_the_robot_not_its_random_draws() {
     // Same seed, with and without a pose: the randomized dynamics are the same.
     let course = Course::new(&[Feature::Flat]);
-    let cfg = EnvConfig { num_envs: 2, curriculum: false, ..Default::default() };
+    let cfg = EnvConfig {
+        num_envs: 2,
+        curriculum: false,
+        ..Default::default()
+    };
     let mut a = HexapodEnv::with_terrain(cfg.clone(), course.terrain().clone()).unwrap();
     let mut b = HexapodEnv::with_terrain(cfg, course.terrain().clone()).unwrap();
     b.set_spawn_pose(1, Some(course.start_pose(0)));
@@ -141,10 +221,21 @@ fn a_spawn_pose_moves_the_robot_not_its_random_draws() {
     b.reset();
     for i in 0..2 {
         assert_eq!(a.total_mass_kg(i), b.total_mass_kg(i));
-        assert_eq!(a.drive_params(i).motor_strength, b.drive_params(i).motor_strength);
+        assert_eq!(
+            a.drive_params(i).motor_strength,
+            b.drive_params(i).motor_strength
+        );
     }
     // Reseeded slots draw the same robot: slot 0 of a reseeded to slot 1's seed matches.
-    let mut c = HexapodEnv::with_terrain(EnvConfig { num_envs: 2, curriculum: false, ..Default::default() }, course.terrain().clone()).unwrap();
+    let mut c = HexapodEnv::with_terrain(
+        EnvConfig {
+            num_envs: 2,
+            curriculum: false,
+            ..Default::default()
+        },
+        course.terrain().clone(),
+    )
+    .unwrap();
     c.reseed(1, 7);
     c.reset();
     assert_eq!(c.total_mass_kg(1), a.total_mass_kg(0));

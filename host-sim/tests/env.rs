@@ -7,7 +7,11 @@ use host_sim::env::HexapodEnv;
 use host_sim::vec_env::VecEnv;
 
 fn quiet_config(num_envs: usize) -> EnvConfig {
-    let mut c = EnvConfig { num_envs, observation_noise: false, ..Default::default() };
+    let mut c = EnvConfig {
+        num_envs,
+        observation_noise: false,
+        ..Default::default()
+    };
     c.randomization.enabled = false;
     c.push.enabled = false;
     c
@@ -18,9 +22,9 @@ fn standing_observations_match_core_layout_and_scales() {
     let mut env = HexapodEnv::new(quiet_config(2)).unwrap();
     env.reset();
     env.set_command(0, [0.25, -0.1, 0.4]);
-    let mut r = env.step(&vec![0.0; 2 * NUM_JOINTS]);
+    let mut r = env.step(&[0.0; 2 * NUM_JOINTS]);
     for _ in 0..100 {
-        r = env.step(&vec![0.0; 2 * NUM_JOINTS]);
+        r = env.step(&[0.0; 2 * NUM_JOINTS]);
     }
     assert!(!r.dones[0], "standing robot must not terminate");
     let a = &r.obs.actor[..ACTOR_OBS_DIM];
@@ -30,15 +34,34 @@ fn standing_observations_match_core_layout_and_scales() {
     }
     let p = &a[ACTOR_PROPRIO];
     // Upright: gravity along -z of the base.
-    assert!((p[PROPRIO_GRAVITY.start + 2] + 1.0).abs() < 0.01, "{:?}", &p[PROPRIO_GRAVITY]);
+    assert!(
+        (p[PROPRIO_GRAVITY.start + 2] + 1.0).abs() < 0.01,
+        "{:?}",
+        &p[PROPRIO_GRAVITY]
+    );
     // Standing at the nominal pose: q - q0 near zero, small velocities.
-    assert!(p[PROPRIO_JOINT_POS].iter().all(|x| x.abs() < 0.05), "{:?}", &p[PROPRIO_JOINT_POS]);
+    assert!(
+        p[PROPRIO_JOINT_POS].iter().all(|x| x.abs() < 0.05),
+        "{:?}",
+        &p[PROPRIO_JOINT_POS]
+    );
     let priv_ = &r.obs.privileged[..PRIVILEGED_DIM];
-    assert!((priv_[PRIV_BASE_HEIGHT] - hexapod_core::robot::NOMINAL_BASE_HEIGHT_M).abs() < 0.02, "height {}", priv_[PRIV_BASE_HEIGHT]);
-    let fz: f32 = (0..6).map(|l| priv_[PRIV_CONTACT_FORCES.start + 3 * l + 2]).sum();
-    assert!((fz / CONTACT_FORCE_SCALE - 25.5 * 9.81).abs() < 25.0, "fz {fz}");
+    assert!(
+        (priv_[PRIV_BASE_HEIGHT] - hexapod_core::robot::NOMINAL_BASE_HEIGHT_M).abs() < 0.02,
+        "height {}",
+        priv_[PRIV_BASE_HEIGHT]
+    );
+    let fz: f32 = (0..6)
+        .map(|l| priv_[PRIV_CONTACT_FORCES.start + 3 * l + 2])
+        .sum();
+    assert!(
+        (fz / CONTACT_FORCE_SCALE - 25.5 * 9.81).abs() < 25.0,
+        "fz {fz}"
+    );
     // Height scan on flat ground: (0.30 - 0.3 - 0) * 5 ~ 0.
-    assert!(r.obs.heights[..HEIGHT_SCAN_DIM].iter().all(|h| h.abs() < 0.15));
+    assert!(r.obs.heights[..HEIGHT_SCAN_DIM]
+        .iter()
+        .all(|h| h.abs() < 0.15));
     // History: newest entry is the actor's o^p.
     let hist = &r.obs.history[..HISTORY_DIM];
     assert_eq!(&hist[HISTORY_DIM - PROPRIO_DIM..], p);
@@ -51,11 +74,17 @@ fn standing_observations_match_core_layout_and_scales() {
 #[test]
 fn same_seed_same_trajectory() {
     let run = || {
-        let mut env = HexapodEnv::new(EnvConfig { num_envs: 3, ..Default::default() }).unwrap();
+        let mut env = HexapodEnv::new(EnvConfig {
+            num_envs: 3,
+            ..Default::default()
+        })
+        .unwrap();
         let mut obs = env.reset();
         let mut t = 0.0f32;
         for k in 0..60 {
-            let actions: Vec<f32> = (0..3 * NUM_JOINTS).map(|j| ((k * 7 + j) as f32 * 0.37).sin() * 0.5).collect();
+            let actions: Vec<f32> = (0..3 * NUM_JOINTS)
+                .map(|j| ((k * 7 + j) as f32 * 0.37).sin() * 0.5)
+                .collect();
             let r = env.step(&actions);
             t += r.rewards.iter().sum::<f32>();
             obs = r.obs;
@@ -71,18 +100,32 @@ fn same_seed_same_trajectory() {
 
 #[test]
 fn randomized_friction_stays_in_range() {
-    let mut env = HexapodEnv::new(EnvConfig { num_envs: 32, ..Default::default() }).unwrap();
+    let mut env = HexapodEnv::new(EnvConfig {
+        num_envs: 32,
+        ..Default::default()
+    })
+    .unwrap();
     let obs = env.reset();
-    let frictions: Vec<f32> = (0..32).map(|i| obs.privileged[i * PRIVILEGED_DIM + PRIV_FRICTION]).collect();
-    assert!(frictions.iter().all(|f| (0.1..=2.5).contains(f)), "{frictions:?}");
-    let spread = frictions.iter().cloned().fold(f32::MIN, f32::max) - frictions.iter().cloned().fold(f32::MAX, f32::min);
+    let frictions: Vec<f32> = (0..32)
+        .map(|i| obs.privileged[i * PRIVILEGED_DIM + PRIV_FRICTION])
+        .collect();
+    assert!(
+        frictions.iter().all(|f| (0.1..=2.5).contains(f)),
+        "{frictions:?}"
+    );
+    let spread = frictions.iter().cloned().fold(f32::MIN, f32::max)
+        - frictions.iter().cloned().fold(f32::MAX, f32::min);
     assert!(spread > 1.0, "friction is not randomized: {frictions:?}");
 }
 
 #[test]
 fn randomized_drives_and_masses_stay_in_range() {
     let n = 24;
-    let mut env = HexapodEnv::new(EnvConfig { num_envs: n, ..Default::default() }).unwrap();
+    let mut env = HexapodEnv::new(EnvConfig {
+        num_envs: n,
+        ..Default::default()
+    })
+    .unwrap();
     env.reset();
     env.step(&vec![0.0; n * NUM_JOINTS]);
     let nominal_kg = hexapod_core::robot::TOTAL_MASS_KG;
@@ -92,15 +135,25 @@ fn randomized_drives_and_masses_stay_in_range() {
         for j in 0..NUM_JOINTS {
             let stiffness = d.kp1_per_s[j] * d.kp2_nms_per_rad[j];
             assert!((80.0..=120.0).contains(&stiffness), "stiffness {stiffness}");
-            assert!((1.6..=2.4).contains(&d.kp2_nms_per_rad[j]), "damping {}", d.kp2_nms_per_rad[j]);
+            assert!(
+                (1.6..=2.4).contains(&d.kp2_nms_per_rad[j]),
+                "damping {}",
+                d.kp2_nms_per_rad[j]
+            );
             assert!((0.8..=1.2).contains(&d.motor_strength[j]));
         }
         let m = env.total_mass_kg(i);
-        assert!(m >= 0.9 * nominal_kg - 1e-3 && m <= 1.1 * nominal_kg + 5.0 + 1e-3, "mass {m}");
+        assert!(
+            m >= 0.9 * nominal_kg - 1e-3 && m <= 1.1 * nominal_kg + 5.0 + 1e-3,
+            "mass {m}"
+        );
         lo_kg = lo_kg.min(m);
         hi_kg = hi_kg.max(m);
     }
-    assert!(hi_kg - lo_kg > 1.0, "masses are not randomized: {lo_kg}..{hi_kg}");
+    assert!(
+        hi_kg - lo_kg > 1.0,
+        "masses are not randomized: {lo_kg}..{hi_kg}"
+    );
 }
 
 #[test]
@@ -144,8 +197,8 @@ fn targets_take_the_firmware_action_path() {
 
 #[test]
 fn episodes_start_from_reference_states_when_given() {
-    use host_sim::reference::ReferenceState;
     use host_sim::frames::rotate_inverse;
+    use host_sim::reference::ReferenceState;
     let mut c = quiet_config(4);
     c.reference_init_probability = 1.0;
     let mut env = HexapodEnv::new(c).unwrap();
@@ -164,15 +217,30 @@ fn episodes_start_from_reference_states_when_given() {
     env.reset();
     for i in 0..4 {
         let s = env.robot_state(i);
-        assert!(s.q_rad.iter().zip(&q).all(|(a, b)| (a - b).abs() < 1e-5), "{:?}", s.q_rad);
-        assert!(s.qdot_rad_s.iter().all(|&v| (v - 0.5).abs() < 1e-5), "{:?}", s.qdot_rad_s);
+        assert!(
+            s.q_rad.iter().zip(&q).all(|(a, b)| (a - b).abs() < 1e-5),
+            "{:?}",
+            s.q_rad
+        );
+        assert!(
+            s.qdot_rad_s.iter().all(|&v| (v - 0.5).abs() < 1e-5),
+            "{:?}",
+            s.qdot_rad_s
+        );
         let v = rotate_inverse(s.base_quat_xyzw, s.base_lin_vel_world_m_s);
         let w = rotate_inverse(s.base_quat_xyzw, s.base_ang_vel_world_rad_s);
         assert!((v[0] - 0.3).abs() < 1e-4 && v[1].abs() < 1e-4, "{v:?}");
         assert!((w[2] - 0.4).abs() < 1e-4, "{w:?}");
         let up = rotate_inverse(s.base_quat_xyzw, [0.0, 0.0, 1.0]);
-        assert!((up[0] - tilt.sin()).abs() < 1e-5 && (up[2] - tilt.cos()).abs() < 1e-5, "{up:?}");
-        assert!(s.base_pos_world_m[2] >= 0.30 - 1e-4, "spawned at {} m", s.base_pos_world_m[2]);
+        assert!(
+            (up[0] - tilt.sin()).abs() < 1e-5 && (up[2] - tilt.cos()).abs() < 1e-5,
+            "{up:?}"
+        );
+        assert!(
+            s.base_pos_world_m[2] >= 0.30 - 1e-4,
+            "spawned at {} m",
+            s.base_pos_world_m[2]
+        );
     }
     // Without reference states (or with probability 0) robots stand at the nominal pose.
     let mut env = HexapodEnv::new(quiet_config(1)).unwrap();
@@ -192,7 +260,10 @@ fn time_out_is_flagged_for_bootstrapping() {
     }
     let r = last.unwrap();
     assert!(r.dones[0] && r.time_outs[0]);
-    assert!(r.episode_log.iter().any(|(k, _)| k == "rew_tracking_lin_vel"));
+    assert!(r
+        .episode_log
+        .iter()
+        .any(|(k, _)| k == "rew_tracking_lin_vel"));
 }
 
 #[test]
@@ -207,7 +278,11 @@ fn robots_spawned_on_stairs_and_blocks_stand() {
     c.curriculum = false;
     let mut env = HexapodEnv::new(c).unwrap();
     let columns = env.config().terrain.columns.clone();
-    let kinds = [TileKind::StairsUp, TileKind::StairsDown, TileKind::DiscreteObstacles];
+    let kinds = [
+        TileKind::StairsUp,
+        TileKind::StairsDown,
+        TileKind::DiscreteObstacles,
+    ];
     for i in 0..24 {
         let column = columns.iter().position(|k| *k == kinds[i % 3]).unwrap();
         env.set_terrain_tile(i, 1 + i % 2, column);
@@ -224,6 +299,9 @@ fn robots_spawned_on_stairs_and_blocks_stand() {
         // Upright: the base's z axis within 45 deg of vertical (legs in q0 on steps 20 cm
         // apart tilt the body by about 30 deg).
         let z_axis_z = 1.0 - 2.0 * (up[0] * up[0] + up[1] * up[1]);
-        assert!(z_axis_z > 45f32.to_radians().cos(), "robot {i} tilted: {z_axis_z}");
+        assert!(
+            z_axis_z > 45f32.to_radians().cos(),
+            "robot {i} tilted: {z_axis_z}"
+        );
     }
 }

@@ -8,7 +8,10 @@ use host_sim::peer::{mujoco_available, rapier_fidelity, run_mujoco};
 #[test]
 fn rapier_agrees_with_mujoco() {
     if !mujoco_available() {
-        assert!(std::env::var("CI").is_err(), "CI must install the MuJoCo peer (pip install mujoco)");
+        assert!(
+            std::env::var("CI").is_err(),
+            "CI must install the MuJoCo peer (pip install mujoco)"
+        );
         eprintln!("skipped: python3 -c 'import mujoco' fails; pip install mujoco numpy");
         return;
     }
@@ -17,10 +20,30 @@ fn rapier_agrees_with_mujoco() {
     eprintln!("rapier: {ours:?}");
     eprintln!("mujoco: {theirs:?}");
     let dh = (ours.stand_height_m - theirs.stand_height_m).abs();
-    assert!(dh < 0.01, "standing height: rapier {} vs MuJoCo {}", ours.stand_height_m, theirs.stand_height_m);
-    let diff: f32 = ours.stand_torque_nm.iter().zip(&theirs.stand_torque_nm).map(|(a, b)| (a - b).powi(2)).sum::<f32>().sqrt();
-    let norm: f32 = theirs.stand_torque_nm.iter().map(|b| b * b).sum::<f32>().sqrt();
-    assert!(diff / norm < 0.10, "standing torques differ by {:.1} %", 100.0 * diff / norm);
+    assert!(
+        dh < 0.01,
+        "standing height: rapier {} vs MuJoCo {}",
+        ours.stand_height_m,
+        theirs.stand_height_m
+    );
+    let diff: f32 = ours
+        .stand_torque_nm
+        .iter()
+        .zip(&theirs.stand_torque_nm)
+        .map(|(a, b)| (a - b).powi(2))
+        .sum::<f32>()
+        .sqrt();
+    let norm: f32 = theirs
+        .stand_torque_nm
+        .iter()
+        .map(|b| b * b)
+        .sum::<f32>()
+        .sqrt();
+    assert!(
+        diff / norm < 0.10,
+        "standing torques differ by {:.1} %",
+        100.0 * diff / norm
+    );
     let d_ours = ours.walk_displacement_m[0].hypot(ours.walk_displacement_m[1]);
     let d_theirs = theirs.walk_displacement_m[0].hypot(theirs.walk_displacement_m[1]);
     eprintln!(
@@ -32,5 +55,8 @@ fn rapier_agrees_with_mujoco() {
         d_theirs,
         100.0 * (d_ours - d_theirs).abs() / d_theirs
     );
-    assert!((d_ours - d_theirs).abs() / d_theirs < 0.20, "gait displacement: rapier {d_ours} m vs MuJoCo {d_theirs} m");
+    assert!(
+        (d_ours - d_theirs).abs() / d_theirs < 0.20,
+        "gait displacement: rapier {d_ours} m vs MuJoCo {d_theirs} m"
+    );
 }

@@ -13,14 +13,14 @@
 use anyhow::{bail, Context};
 use candle_core::{DType, Device, Tensor};
 use candle_nn::VarMap;
+use hexapod_core::nets::ACTOR_OUT;
+use hexapod_core::obs::{ACTOR_OBS_DIM, HEIGHT_SCAN_DIM, HISTORY_DIM, PRIVILEGED_DIM};
 use host_train::algo::adam::Adam;
 use host_train::algo::ppo::{Minibatch, Ppo};
 use host_train::amp::discriminator::{Discriminator, DISC_IN};
 use host_train::amp::prior_source::SyntheticTripod;
 use host_train::config::{EnvKind, TrainConfig};
 use host_train::runner::Runner;
-use hexapod_core::nets::ACTOR_OUT;
-use hexapod_core::obs::{ACTOR_OBS_DIM, HEIGHT_SCAN_DIM, HISTORY_DIM, PRIVILEGED_DIM};
 use rand::{Rng, SeedableRng};
 use std::path::Path;
 use std::process::Command;
@@ -39,15 +39,27 @@ struct Args {
 }
 
 fn parse_args() -> anyhow::Result<Args> {
-    let mut a = Args { batches: Vec::new(), reps: 5, torch: true, e2e_envs: 128, e2e_iterations: 3, e2e_config: "flat-tripod.toml".into() };
+    let mut a = Args {
+        batches: Vec::new(),
+        reps: 5,
+        torch: true,
+        e2e_envs: 128,
+        e2e_iterations: 3,
+        e2e_config: "flat-tripod.toml".into(),
+    };
     let mut it = std::env::args().skip(1);
     while let Some(arg) = it.next() {
         let mut num = |name: &str| -> anyhow::Result<usize> {
-            it.next().with_context(|| format!("{name} needs a value"))?.parse().with_context(|| format!("bad {name}"))
+            it.next()
+                .with_context(|| format!("{name} needs a value"))?
+                .parse()
+                .with_context(|| format!("bad {name}"))
         };
         match arg.as_str() {
             "--batch" => a.batches.push(num("--batch")?),
-            "--e2e-config" => a.e2e_config = it.next().context("--e2e-config needs a preset file name")?,
+            "--e2e-config" => {
+                a.e2e_config = it.next().context("--e2e-config needs a preset file name")?
+            }
             "--reps" => a.reps = num("--reps")?,
             "--e2e-envs" => a.e2e_envs = num("--e2e-envs")?,
             "--e2e-iterations" => a.e2e_iterations = num("--e2e-iterations")?,
@@ -130,7 +142,9 @@ fn candle_disc_step(batch: usize, reps: usize) -> anyhow::Result<f64> {
 /// End-to-end: `hexapod train` iterations on the simulator with a preset (its own priors),
 /// env steps per second including updates.
 fn end_to_end(config: &str, envs: usize, iterations: usize) -> anyhow::Result<(f64, f64, f64)> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs").join(config);
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../configs")
+        .join(config);
     let mut cfg = TrainConfig::load(&root)?;
     cfg.env.kind = EnvKind::Sim;
     cfg.env.num_envs = envs;
@@ -147,21 +161,39 @@ fn end_to_end(config: &str, envs: usize, iterations: usize) -> anyhow::Result<(f
         steps += (cfg.env.num_envs * cfg.ppo.num_steps_per_env) as f64;
     }
     std::fs::remove_dir_all(&dir).ok();
-    Ok((steps / (collect + update), collect / iterations as f64, update / iterations as f64))
+    Ok((
+        steps / (collect + update),
+        collect / iterations as f64,
+        update / iterations as f64,
+    ))
 }
 
 fn torch_times(batch: usize, reps: usize, threads: usize) -> anyhow::Result<(f64, f64)> {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../bench/learner_torch.py");
     let out = Command::new("python3")
         .arg(&script)
-        .args(["--batch", &batch.to_string(), "--reps", &reps.to_string(), "--threads", &threads.to_string()])
+        .args([
+            "--batch",
+            &batch.to_string(),
+            "--reps",
+            &reps.to_string(),
+            "--threads",
+            &threads.to_string(),
+        ])
         .output()
         .context("running python3 bench/learner_torch.py")?;
     if !out.status.success() {
-        bail!("PyTorch benchmark failed: {}", String::from_utf8_lossy(&out.stderr));
+        bail!(
+            "PyTorch benchmark failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
     }
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).context("PyTorch benchmark output")?;
-    Ok((v["ppo_step_s"].as_f64().context("ppo_step_s")?, v["disc_step_s"].as_f64().context("disc_step_s")?))
+    let v: serde_json::Value =
+        serde_json::from_slice(&out.stdout).context("PyTorch benchmark output")?;
+    Ok((
+        v["ppo_step_s"].as_f64().context("ppo_step_s")?,
+        v["disc_step_s"].as_f64().context("disc_step_s")?,
+    ))
 }
 
 fn main() -> anyhow::Result<()> {
@@ -177,7 +209,10 @@ fn main() -> anyhow::Result<()> {
         std::env::var("CANDLE_NUM_THREADS").unwrap_or_default(),
         if kept { "off" } else { "on" }
     );
-    println!("{:<34} {:>7} {:>10} {:>10} {:>8}", "step", "batch", "candle s", "torch s", "ratio");
+    println!(
+        "{:<34} {:>7} {:>10} {:>10} {:>8}",
+        "step", "batch", "candle s", "torch s", "ratio"
+    );
     for &batch in &args.batches {
         let ppo = candle_ppo_step(batch, args.reps)?;
         let disc = candle_disc_step(batch, args.reps)?;
@@ -203,7 +238,8 @@ fn main() -> anyhow::Result<()> {
         }
     }
     if args.e2e_envs > 0 {
-        let (sps, collect, update) = end_to_end(&args.e2e_config, args.e2e_envs, args.e2e_iterations)?;
+        let (sps, collect, update) =
+            end_to_end(&args.e2e_config, args.e2e_envs, args.e2e_iterations)?;
         println!(
             "end to end (sim, {} envs x 24 steps, {}): {:.0} env steps/s (collect {:.2} s + update {:.2} s per iteration, update {:.0} % of it)",
             args.e2e_envs,

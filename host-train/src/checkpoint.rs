@@ -46,7 +46,9 @@ pub enum CheckpointError {
         name: String,
     },
     /// A tensor's shape differs from what the config builds.
-    #[error("checkpoint {path}: tensor `{name}` has shape {found:?} but the config builds {expected:?}")]
+    #[error(
+        "checkpoint {path}: tensor `{name}` has shape {found:?} but the config builds {expected:?}"
+    )]
     ShapeMismatch {
         /// File.
         path: String,
@@ -68,7 +70,10 @@ pub enum CheckpointError {
 }
 
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> CheckpointError + '_ {
-    move |source| CheckpointError::Io { path: path.display().to_string(), source }
+    move |source| CheckpointError::Io {
+        path: path.display().to_string(),
+        source,
+    }
 }
 
 fn collect(maps: &[&VarMap]) -> HashMap<String, Tensor> {
@@ -90,20 +95,31 @@ pub fn save(dir: &Path, ppo: &Ppo, iteration: usize) -> Result<(), CheckpointErr
     std::fs::create_dir_all(&tmp).map_err(io(&tmp))?;
     let weights = collect(&[&ppo.params, &ppo.stats, &ppo.disc_params]);
     let policy_path = tmp.join(POLICY_FILE);
-    candle_core::safetensors::save(&weights, &policy_path)
-        .map_err(|e| CheckpointError::Malformed { path: policy_path.display().to_string(), message: e.to_string() })?;
+    candle_core::safetensors::save(&weights, &policy_path).map_err(|e| {
+        CheckpointError::Malformed {
+            path: policy_path.display().to_string(),
+            message: e.to_string(),
+        }
+    })?;
     let mut opt: HashMap<String, Tensor> = HashMap::new();
-    let state = ppo.opt.state("optimizer.policy").map_err(|e| malformed(&tmp, e))?;
+    let state = ppo
+        .opt
+        .state("optimizer.policy")
+        .map_err(|e| malformed(&tmp, e))?;
     opt.extend(state);
     if let Some(d) = &ppo.disc_opt {
-        opt.extend(d.state("optimizer.discriminator").map_err(|e| malformed(&tmp, e))?);
+        opt.extend(
+            d.state("optimizer.discriminator")
+                .map_err(|e| malformed(&tmp, e))?,
+        );
     }
     let opt_path = tmp.join(OPTIMIZER_FILE);
     candle_core::safetensors::save(&opt, &opt_path).map_err(|e| malformed(&opt_path, e))?;
     let cfg_path = tmp.join(CONFIG_FILE);
     std::fs::write(&cfg_path, ppo.cfg.to_toml_string()).map_err(io(&cfg_path))?;
     let state_path = tmp.join(STATE_FILE);
-    std::fs::write(&state_path, format!("{{\"iteration\": {iteration}}}\n")).map_err(io(&state_path))?;
+    std::fs::write(&state_path, format!("{{\"iteration\": {iteration}}}\n"))
+        .map_err(io(&state_path))?;
     if dir.exists() {
         std::fs::remove_dir_all(dir).map_err(io(dir))?;
     }
@@ -111,14 +127,18 @@ pub fn save(dir: &Path, ppo: &Ppo, iteration: usize) -> Result<(), CheckpointErr
 }
 
 fn malformed(path: &Path, e: impl ToString) -> CheckpointError {
-    CheckpointError::Malformed { path: path.display().to_string(), message: e.to_string() }
+    CheckpointError::Malformed {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    }
 }
 
 /// The checkpoint a path names: the directory itself when it holds `config.toml` and
 /// `policy.safetensors`, or, for
 /// a run directory (`runs/<name>`, with `checkpoints/model_NNNNNN`), its latest checkpoint.
 pub fn resolve_dir(path: &Path) -> Result<std::path::PathBuf, CheckpointError> {
-    let is_checkpoint = |p: &Path| p.join("config.toml").is_file() && p.join("policy.safetensors").is_file();
+    let is_checkpoint =
+        |p: &Path| p.join("config.toml").is_file() && p.join("policy.safetensors").is_file();
     if is_checkpoint(path) {
         return Ok(path.to_path_buf());
     }
@@ -127,7 +147,10 @@ pub fn resolve_dir(path: &Path) -> Result<std::path::PathBuf, CheckpointError> {
         entries
             .filter_map(|e| e.ok().map(|e| e.path()))
             .filter(|p| is_checkpoint(p))
-            .filter(|p| p.file_name().is_some_and(|n| n.to_string_lossy().starts_with("model_")))
+            .filter(|p| {
+                p.file_name()
+                    .is_some_and(|n| n.to_string_lossy().starts_with("model_"))
+            })
             .max()
     });
     latest.ok_or_else(|| CheckpointError::Malformed {
@@ -139,7 +162,12 @@ pub fn resolve_dir(path: &Path) -> Result<std::path::PathBuf, CheckpointError> {
 /// A short name for outputs derived from a checkpoint path: its last two components
 /// (`flat-tripod`, `my-run-model_000400`).
 pub fn display_name(dir: &Path) -> String {
-    let parts: Vec<String> = dir.components().rev().take(3).map(|c| c.as_os_str().to_string_lossy().into_owned()).collect();
+    let parts: Vec<String> = dir
+        .components()
+        .rev()
+        .take(3)
+        .map(|c| c.as_os_str().to_string_lossy().into_owned())
+        .collect();
     match parts.as_slice() {
         [model, checkpoints, run, ..] if checkpoints == "checkpoints" => format!("{run}-{model}"),
         [last, ..] => last.clone(),
@@ -175,17 +203,23 @@ fn read_tensors(path: &Path) -> Result<HashMap<String, Tensor>, CheckpointError>
     candle_core::safetensors::load(path, &Device::Cpu).map_err(|e| malformed(path, e))
 }
 
-fn load_into(maps: &[&VarMap], tensors: &HashMap<String, Tensor>, path: &Path) -> Result<(), CheckpointError> {
+fn load_into(
+    maps: &[&VarMap],
+    tensors: &HashMap<String, Tensor>,
+    path: &Path,
+) -> Result<(), CheckpointError> {
     for map in maps {
         let data = map.data().lock().expect("var map lock");
         let mut names: Vec<&String> = data.keys().collect();
         names.sort();
         for name in names {
             let var = &data[name];
-            let t = tensors.get(name).ok_or_else(|| CheckpointError::MissingTensor {
-                path: path.display().to_string(),
-                name: name.clone(),
-            })?;
+            let t = tensors
+                .get(name)
+                .ok_or_else(|| CheckpointError::MissingTensor {
+                    path: path.display().to_string(),
+                    name: name.clone(),
+                })?;
             if t.dims() != var.dims() {
                 return Err(CheckpointError::ShapeMismatch {
                     path: path.display().to_string(),
@@ -206,7 +240,11 @@ fn load_into(maps: &[&VarMap], tensors: &HashMap<String, Tensor>, path: &Path) -
 pub fn load(dir: &Path, ppo: &mut Ppo, with_optimizer: bool) -> Result<(), CheckpointError> {
     let path = dir.join(POLICY_FILE);
     let tensors = read_tensors(&path)?;
-    load_into(&[&ppo.params, &ppo.stats, &ppo.disc_params], &tensors, &path)?;
+    load_into(
+        &[&ppo.params, &ppo.stats, &ppo.disc_params],
+        &tensors,
+        &path,
+    )?;
     ppo.ac.sync_normalizers().map_err(|e| malformed(&path, e))?;
     if let Some(d) = &mut ppo.disc {
         d.norm.sync_from_vars().map_err(|e| malformed(&path, e))?;
@@ -215,9 +253,12 @@ pub fn load(dir: &Path, ppo: &mut Ppo, with_optimizer: bool) -> Result<(), Check
         let opt_path = dir.join(OPTIMIZER_FILE);
         if opt_path.exists() {
             let opt = read_tensors(&opt_path)?;
-            ppo.opt.load_state("optimizer.policy", &opt).map_err(|e| malformed(&opt_path, e))?;
+            ppo.opt
+                .load_state("optimizer.policy", &opt)
+                .map_err(|e| malformed(&opt_path, e))?;
             if let Some(d) = &mut ppo.disc_opt {
-                d.load_state("optimizer.discriminator", &opt).map_err(|e| malformed(&opt_path, e))?;
+                d.load_state("optimizer.discriminator", &opt)
+                    .map_err(|e| malformed(&opt_path, e))?;
             }
         }
     }
@@ -227,7 +268,10 @@ pub fn load(dir: &Path, ppo: &mut Ppo, with_optimizer: bool) -> Result<(), Check
 /// Builds the learner a checkpoint's config describes and loads its weights (no optimizer).
 pub fn load_for_inference(dir: &Path) -> Result<(TrainConfig, Ppo), CheckpointError> {
     let cfg = load_config(dir)?;
-    let mut ppo = Ppo::new(&cfg).map_err(|source| CheckpointError::Learner { path: dir.display().to_string(), source })?;
+    let mut ppo = Ppo::new(&cfg).map_err(|source| CheckpointError::Learner {
+        path: dir.display().to_string(),
+        source,
+    })?;
     load(dir, &mut ppo, false)?;
     Ok((cfg, ppo))
 }
@@ -264,16 +308,32 @@ mod tests {
         let ppo = Ppo::new(&cfg).unwrap();
         let run = tmpdir("run");
         for it in [50, 100, 7] {
-            save(&run.join("checkpoints").join(format!("model_{it:06}")), &ppo, it).unwrap();
+            save(
+                &run.join("checkpoints").join(format!("model_{it:06}")),
+                &ppo,
+                it,
+            )
+            .unwrap();
         }
         // The run directory has its own config.toml but no weights: not a checkpoint.
         std::fs::write(run.join("config.toml"), cfg.to_toml_string()).unwrap();
         let latest = run.join("checkpoints/model_000100");
         assert_eq!(resolve_dir(&run).unwrap(), latest);
         assert_eq!(resolve_dir(&latest).unwrap(), latest);
-        assert_eq!(display_name(&latest), format!("{}-model_000100", run.file_name().unwrap().to_string_lossy()));
-        assert_eq!(display_name(Path::new("assets/policies/flat-tripod")), "flat-tripod");
-        let err = resolve_dir(&run.join("checkpoints")).unwrap_err().to_string();
+        assert_eq!(
+            display_name(&latest),
+            format!(
+                "{}-model_000100",
+                run.file_name().unwrap().to_string_lossy()
+            )
+        );
+        assert_eq!(
+            display_name(Path::new("assets/policies/flat-tripod")),
+            "flat-tripod"
+        );
+        let err = resolve_dir(&run.join("checkpoints"))
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("nor a run directory"), "{err}");
         std::fs::remove_dir_all(&run).unwrap();
     }
@@ -288,9 +348,19 @@ mod tests {
         save(&dir, &a, 17).unwrap();
         assert_eq!(load_config(&dir).unwrap(), cfg);
         assert_eq!(load_iteration(&dir).unwrap(), 17);
-        let mut b = Ppo::new(&TrainConfig { runner: crate::config::RunnerConfig { seed: 99, ..cfg.runner.clone() }, ..cfg.clone() }).unwrap();
+        let mut b = Ppo::new(&TrainConfig {
+            runner: crate::config::RunnerConfig {
+                seed: 99,
+                ..cfg.runner.clone()
+            },
+            ..cfg.clone()
+        })
+        .unwrap();
         load(&dir, &mut b, true).unwrap();
-        let (ta, tb) = (collect(&[&a.params, &a.stats, &a.disc_params]), collect(&[&b.params, &b.stats, &b.disc_params]));
+        let (ta, tb) = (
+            collect(&[&a.params, &a.stats, &a.disc_params]),
+            collect(&[&b.params, &b.stats, &b.disc_params]),
+        );
         assert_eq!(ta.len(), tb.len());
         for (k, t) in &ta {
             let x = t.flatten_all().unwrap().to_vec1::<f32>().unwrap();
@@ -312,12 +382,18 @@ mod tests {
         other.policy.actor_hidden = vec![16];
         let mut b = Ppo::new(&other).unwrap();
         let err = load(&dir, &mut b, false).unwrap_err();
-        assert!(matches!(err, CheckpointError::ShapeMismatch { .. }), "{err}");
+        assert!(
+            matches!(err, CheckpointError::ShapeMismatch { .. }),
+            "{err}"
+        );
         assert!(err.to_string().contains("actor.layers.0"), "{err}");
         let err = load(&dir.join("nope"), &mut b, false).unwrap_err();
         assert!(err.to_string().contains("policy.safetensors"), "{err}");
         std::fs::write(dir.join(POLICY_FILE), b"not a safetensors file").unwrap();
-        assert!(matches!(load(&dir, &mut b, false).unwrap_err(), CheckpointError::Malformed { .. }));
+        assert!(matches!(
+            load(&dir, &mut b, false).unwrap_err(),
+            CheckpointError::Malformed { .. }
+        ));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

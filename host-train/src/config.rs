@@ -54,7 +54,12 @@ pub struct EnvConfig {
 
 impl Default for EnvConfig {
     fn default() -> Self {
-        Self { kind: EnvKind::Sim, num_envs: 128, seed: 1, fake_episode_steps: 200 }
+        Self {
+            kind: EnvKind::Sim,
+            num_envs: 128,
+            seed: 1,
+            fake_episode_steps: 200,
+        }
     }
 }
 
@@ -79,7 +84,13 @@ pub struct RewardConfig {
 
 impl Default for RewardConfig {
     fn default() -> Self {
-        Self { task: true, style: true, penalties: true, style_weight: 1.0, only_positive_env_reward: true }
+        Self {
+            task: true,
+            style: true,
+            penalties: true,
+            style_weight: 1.0,
+            only_positive_env_reward: true,
+        }
     }
 }
 
@@ -328,8 +339,10 @@ impl PartialEq for TrainConfig {
 impl TrainConfig {
     /// Parses a TOML string (missing keys take their defaults, unknown keys are errors).
     pub fn from_toml_str(text: &str, origin: &str) -> Result<Self, ConfigError> {
-        let cfg: TrainConfig = toml::from_str(text)
-            .map_err(|e| ConfigError::Parse { path: origin.into(), message: e.to_string() })?;
+        let cfg: TrainConfig = toml::from_str(text).map_err(|e| ConfigError::Parse {
+            path: origin.into(),
+            message: e.to_string(),
+        })?;
         cfg.validate()?;
         Ok(cfg)
     }
@@ -348,11 +361,18 @@ impl TrainConfig {
         let mut table = load_layered(path, 0)?;
         let origin = path.display().to_string();
         for o in overrides {
-            apply_override(&mut table, o).map_err(|message| ConfigError::Parse { path: format!("--set {o}"), message })?;
+            apply_override(&mut table, o).map_err(|message| ConfigError::Parse {
+                path: format!("--set {o}"),
+                message,
+            })?;
         }
-        let cfg: TrainConfig = toml::Value::Table(table)
-            .try_into()
-            .map_err(|e: toml::de::Error| ConfigError::Parse { path: origin, message: e.to_string() })?;
+        let cfg: TrainConfig =
+            toml::Value::Table(table)
+                .try_into()
+                .map_err(|e: toml::de::Error| ConfigError::Parse {
+                    path: origin,
+                    message: e.to_string(),
+                })?;
         cfg.validate()?;
         Ok(cfg)
     }
@@ -385,10 +405,14 @@ impl TrainConfig {
             return bad("env.num_envs must be positive");
         }
         if p.num_steps_per_env == 0 || p.num_learning_epochs == 0 || p.num_mini_batches == 0 {
-            return bad("ppo.num_steps_per_env, num_learning_epochs, num_mini_batches must be positive");
+            return bad(
+                "ppo.num_steps_per_env, num_learning_epochs, num_mini_batches must be positive",
+            );
         }
         if !(self.env.num_envs * p.num_steps_per_env).is_multiple_of(p.num_mini_batches) {
-            return bad("env.num_envs * ppo.num_steps_per_env must be divisible by ppo.num_mini_batches");
+            return bad(
+                "env.num_envs * ppo.num_steps_per_env must be divisible by ppo.num_mini_batches",
+            );
         }
         if !(0.0..=1.0).contains(&p.gamma) || !(0.0..=1.0).contains(&p.lam) {
             return bad("ppo.gamma and ppo.lam must lie in [0, 1]");
@@ -411,7 +435,10 @@ impl TrainConfig {
         if sizes.iter().any(|h| h.contains(&0)) {
             return bad("hidden sizes must be positive");
         }
-        if self.policy.memory_latent == 0 || self.policy.privileged_latent == 0 || self.policy.terrain_latent == 0 {
+        if self.policy.memory_latent == 0
+            || self.policy.privileged_latent == 0
+            || self.policy.terrain_latent == 0
+        {
             return bad("latent sizes must be positive");
         }
         if self.amp_enabled() && self.amp.replay_buffer_size == 0 {
@@ -421,7 +448,9 @@ impl TrainConfig {
             return bad("at least one reward term must be on");
         }
         if self.env.kind == EnvKind::Sim {
-            self.resolved_sim().validate("[sim]").map_err(|e| ConfigError::Invalid(e.to_string()))?;
+            self.resolved_sim()
+                .validate("[sim]")
+                .map_err(|e| ConfigError::Invalid(e.to_string()))?;
         }
         if self.runner.save_interval == 0 {
             return bad("runner.save_interval must be positive");
@@ -453,15 +482,29 @@ const MAX_BASE_DEPTH: usize = 8;
 fn load_layered(path: &Path, depth: usize) -> Result<toml::Table, ConfigError> {
     let origin = path.display().to_string();
     if depth > MAX_BASE_DEPTH {
-        return Err(ConfigError::Parse { path: origin, message: format!("more than {MAX_BASE_DEPTH} nested `base` presets (a loop?)") });
+        return Err(ConfigError::Parse {
+            path: origin,
+            message: format!("more than {MAX_BASE_DEPTH} nested `base` presets (a loop?)"),
+        });
     }
-    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io { path: origin.clone(), source })?;
-    let mut table: toml::Table = text.parse().map_err(|e: toml::de::Error| ConfigError::Parse { path: origin.clone(), message: e.to_string() })?;
+    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+        path: origin.clone(),
+        source,
+    })?;
+    let mut table: toml::Table = text
+        .parse()
+        .map_err(|e: toml::de::Error| ConfigError::Parse {
+            path: origin.clone(),
+            message: e.to_string(),
+        })?;
     let Some(base) = table.remove("base") else {
         return Ok(table);
     };
     let Some(base) = base.as_str() else {
-        return Err(ConfigError::Parse { path: origin, message: "`base` must be a file name (a string)".into() });
+        return Err(ConfigError::Parse {
+            path: origin,
+            message: "`base` must be a file name (a string)".into(),
+        });
     };
     let base_path = path.parent().unwrap_or(Path::new(".")).join(base);
     let mut merged = load_layered(&base_path, depth + 1)?;
@@ -483,14 +526,19 @@ fn merge_into(base: &mut toml::Table, top: toml::Table) {
 
 /// Sets `section.key=value` in `table`.
 fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<(), String> {
-    let (key, value) = assignment.split_once('=').ok_or_else(|| "expected `section.key=value`".to_string())?;
+    let (key, value) = assignment
+        .split_once('=')
+        .ok_or_else(|| "expected `section.key=value`".to_string())?;
     let value = value.trim();
     let parsed: toml::Value = match format!("v = {value}").parse::<toml::Table>() {
         Ok(mut t) => t.remove("v").expect("the key was written"),
         Err(_) => toml::Value::String(value.to_string()),
     };
     let mut parts: Vec<&str> = key.trim().split('.').collect();
-    let last = parts.pop().filter(|k| !k.is_empty()).ok_or_else(|| "empty key".to_string())?;
+    let last = parts
+        .pop()
+        .filter(|k| !k.is_empty())
+        .ok_or_else(|| "empty key".to_string())?;
     let mut at = table;
     for part in parts {
         at = at
@@ -525,11 +573,19 @@ mod tests {
                 names.push((path.file_stem().unwrap().to_string_lossy().to_string(), cfg));
             }
         }
-        let get = |n: &str| &names.iter().find(|(k, _)| k == n).unwrap_or_else(|| panic!("preset {n}")).1;
+        let get = |n: &str| {
+            &names
+                .iter()
+                .find(|(k, _)| k == n)
+                .unwrap_or_else(|| panic!("preset {n}"))
+                .1
+        };
         assert!(!get("ablation-gl").amp_enabled());
         assert!(!get("ablation-gs").rewards.penalties);
         assert!(!get("baseline").policy.use_estimator && !get("baseline").policy.privileged_critic);
-        assert!(get("concurrent").policy.use_estimator && !get("concurrent").policy.privileged_critic);
+        assert!(
+            get("concurrent").policy.use_estimator && !get("concurrent").policy.privileged_critic
+        );
         assert_eq!(get("paper").env.num_envs, 4096);
         assert_eq!(get("paper").amp.discriminator_hidden, vec![1024, 512]);
     }
@@ -544,8 +600,11 @@ mod tests {
     fn wrong_types_and_ranges_are_rejected() {
         assert!(TrainConfig::from_toml_str("[env]\nnum_envs = \"many\"\n", "x").is_err());
         assert!(TrainConfig::from_toml_str("[ppo]\ngamma = 1.5\n", "x").is_err());
-        let err = TrainConfig::from_toml_str("[env]\nnum_envs = 3\n[ppo]\nnum_mini_batches = 4\nnum_steps_per_env = 3\n", "x")
-            .unwrap_err();
+        let err = TrainConfig::from_toml_str(
+            "[env]\nnum_envs = 3\n[ppo]\nnum_mini_batches = 4\nnum_steps_per_env = 3\n",
+            "x",
+        )
+        .unwrap_err();
         assert!(err.to_string().contains("divisible"), "{err}");
     }
 
@@ -558,25 +617,63 @@ mod tests {
     #[test]
     fn presets_layer_on_a_base_and_the_command_line_overrides_both() {
         let d = temp_dir("layers");
-        std::fs::write(d.join("base.toml"), "[ppo]\nlearning_rate = 1e-3\ngamma = 0.98\n[runner]\nexperiment_name = \"base\"\n").unwrap();
-        std::fs::write(d.join("mid.toml"), "base = \"base.toml\"\n[ppo]\ngamma = 0.97\n").unwrap();
-        std::fs::write(d.join("top.toml"), "base = \"mid.toml\"\n[runner]\nexperiment_name = \"top\"\n").unwrap();
+        std::fs::write(
+            d.join("base.toml"),
+            "[ppo]\nlearning_rate = 1e-3\ngamma = 0.98\n[runner]\nexperiment_name = \"base\"\n",
+        )
+        .unwrap();
+        std::fs::write(
+            d.join("mid.toml"),
+            "base = \"base.toml\"\n[ppo]\ngamma = 0.97\n",
+        )
+        .unwrap();
+        std::fs::write(
+            d.join("top.toml"),
+            "base = \"mid.toml\"\n[runner]\nexperiment_name = \"top\"\n",
+        )
+        .unwrap();
         let cfg = TrainConfig::load(&d.join("top.toml")).unwrap();
         assert_eq!((cfg.ppo.learning_rate, cfg.ppo.gamma), (1e-3, 0.97));
         assert_eq!(cfg.runner.experiment_name, "top");
         let set = |s: &[&str]| s.iter().map(|x| x.to_string()).collect::<Vec<_>>();
-        let cfg = TrainConfig::load_with_overrides(&d.join("top.toml"), &set(&["ppo.learning_rate=3e-4", "runner.experiment_name=x", "sim.curriculum=false"])).unwrap();
-        assert_eq!((cfg.ppo.learning_rate, cfg.runner.experiment_name.as_str(), cfg.sim.curriculum), (3e-4, "x", false));
+        let cfg = TrainConfig::load_with_overrides(
+            &d.join("top.toml"),
+            &set(&[
+                "ppo.learning_rate=3e-4",
+                "runner.experiment_name=x",
+                "sim.curriculum=false",
+            ]),
+        )
+        .unwrap();
+        assert_eq!(
+            (
+                cfg.ppo.learning_rate,
+                cfg.runner.experiment_name.as_str(),
+                cfg.sim.curriculum
+            ),
+            (3e-4, "x", false)
+        );
         // Unknown keys and bad values name what is wrong.
-        let err = TrainConfig::load_with_overrides(&d.join("top.toml"), &set(&["ppo.learnig_rate=1"])).unwrap_err().to_string();
+        let err =
+            TrainConfig::load_with_overrides(&d.join("top.toml"), &set(&["ppo.learnig_rate=1"]))
+                .unwrap_err()
+                .to_string();
         assert!(err.contains("learnig_rate"), "{err}");
-        let err = TrainConfig::load_with_overrides(&d.join("top.toml"), &set(&["ppo.gamma"])).unwrap_err().to_string();
+        let err = TrainConfig::load_with_overrides(&d.join("top.toml"), &set(&["ppo.gamma"]))
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("section.key=value"), "{err}");
         // A loop of bases and a missing base are refused.
         std::fs::write(d.join("loop.toml"), "base = \"loop.toml\"\n").unwrap();
-        assert!(TrainConfig::load(&d.join("loop.toml")).unwrap_err().to_string().contains("loop"));
+        assert!(TrainConfig::load(&d.join("loop.toml"))
+            .unwrap_err()
+            .to_string()
+            .contains("loop"));
         std::fs::write(d.join("orphan.toml"), "base = \"nowhere.toml\"\n").unwrap();
-        assert!(TrainConfig::load(&d.join("orphan.toml")).unwrap_err().to_string().contains("nowhere.toml"));
+        assert!(TrainConfig::load(&d.join("orphan.toml"))
+            .unwrap_err()
+            .to_string()
+            .contains("nowhere.toml"));
         std::fs::remove_dir_all(&d).ok();
     }
 }

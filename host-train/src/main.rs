@@ -6,7 +6,11 @@ use host_train::cli;
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 #[derive(Parser)]
-#[command(name = "hexapod", version, about = "Hexapod locomotion: motion priors, training, evaluation")]
+#[command(
+    name = "hexapod",
+    version,
+    about = "Hexapod locomotion: motion priors, training, evaluation"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

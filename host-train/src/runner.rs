@@ -9,7 +9,9 @@ use crate::config::TrainConfig;
 use crate::error::TrainError;
 use crate::metrics::MetricsLog;
 use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_STATE_DIM};
-use hexapod_core::obs::{ACTOR_COMMAND, ACTOR_OBS_DIM, COMMAND_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_LIN_VEL};
+use hexapod_core::obs::{
+    ACTOR_COMMAND, ACTOR_OBS_DIM, COMMAND_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_LIN_VEL,
+};
 use host_sim::vec_env::{Observations, VecEnv};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
@@ -87,7 +89,9 @@ impl Runner {
     ) -> Result<Self, TrainError> {
         let ppo = Ppo::new(cfg)?;
         if ppo.disc.is_some() && priors.is_none() {
-            return Err(TrainError::Priors(PriorSourceError("the style reward is on but no motion priors were given".into())));
+            return Err(TrainError::Priors(PriorSourceError(
+                "the style reward is on but no motion priors were given".into(),
+            )));
         }
         if let Some(p) = &priors {
             let references = p.reference_states();
@@ -97,8 +101,10 @@ impl Runner {
         }
         let n = env.num_envs();
         let obs = env.reset();
-        std::fs::create_dir_all(run_dir)
-            .map_err(|source| TrainError::Io { path: run_dir.display().to_string(), source })?;
+        std::fs::create_dir_all(run_dir).map_err(|source| TrainError::Io {
+            path: run_dir.display().to_string(),
+            source,
+        })?;
         Ok(Self {
             ppo,
             env,
@@ -123,8 +129,11 @@ impl Runner {
         // Resuming into a run directory that has a history: keep it up to the checkpoint.
         let csv = self.run_dir.join("metrics.csv");
         if csv.is_file() {
-            self.metrics = MetricsLog::resume_from_csv(&csv, self.iteration)
-                .map_err(|e| TrainError::Io { path: csv.display().to_string(), source: std::io::Error::other(e) })?;
+            self.metrics =
+                MetricsLog::resume_from_csv(&csv, self.iteration).map_err(|e| TrainError::Io {
+                    path: csv.display().to_string(),
+                    source: std::io::Error::other(e),
+                })?;
         }
         Ok(())
     }
@@ -149,11 +158,15 @@ impl Runner {
             let act = self.ppo.act(obs, false)?;
             let res = self.env.step(&act.actions);
             let (style, d_raw) = self.ppo.style_rewards(&obs.amp, &res.amp_next)?;
-            self.ppo.record_policy_transitions(&obs.amp, &res.amp_next, &res.invalid_actions);
+            self.ppo
+                .record_policy_transitions(&obs.amp, &res.amp_next, &res.invalid_actions);
             let mut rewards = res.rewards.clone();
             if self.ppo.cfg.rewards.only_positive_env_reward {
                 // `f32::max` would turn a NaN into 0 and hide a broken environment.
-                rewards.iter_mut().filter(|r| **r < 0.0).for_each(|r| *r = 0.0);
+                rewards
+                    .iter_mut()
+                    .filter(|r| **r < 0.0)
+                    .for_each(|r| *r = 0.0);
             }
             for i in 0..n {
                 st.reward_env += res.rewards[i] as f64;
@@ -175,11 +188,13 @@ impl Runner {
                 let vx = p[PRIV_LIN_VEL.start] / LIN_VEL_SCALE;
                 let vy = p[PRIV_LIN_VEL.start + 1] / LIN_VEL_SCALE;
                 let wz = obs.amp[i * AMP_STATE_DIM + AMP_BASE_ANG_VEL.start + 2];
-                st.lin_vel_error_m_s += (((vx - cmd_x).powi(2) + (vy - cmd_y).powi(2)) as f64).sqrt();
+                st.lin_vel_error_m_s +=
+                    (((vx - cmd_x).powi(2) + (vy - cmd_y).powi(2)) as f64).sqrt();
                 st.yaw_rate_error_rad_s += (wz - cmd_wz).abs() as f64;
                 if !act.estimate.is_empty() {
                     for k in 0..3 {
-                        let e = (act.estimate[i * 3 + k] - p[PRIV_LIN_VEL.start + k]) / LIN_VEL_SCALE;
+                        let e =
+                            (act.estimate[i * 3 + k] - p[PRIV_LIN_VEL.start + k]) / LIN_VEL_SCALE;
                         est_sq += (e * e) as f64;
                         est_count += 1;
                     }
@@ -214,7 +229,8 @@ impl Runner {
             self.obs = res.obs;
         }
         let last_values = self.ppo.values(&self.obs)?;
-        self.storage.compute_returns(&last_values, gamma, self.ppo.cfg.ppo.lam);
+        self.storage
+            .compute_returns(&last_values, gamma, self.ppo.cfg.ppo.lam);
         let samples = (n * steps) as f64;
         for v in [
             &mut st.reward_total,
@@ -226,7 +242,11 @@ impl Runner {
         ] {
             *v /= samples;
         }
-        st.estimator_error_m_s = if est_count > 0 { (est_sq / est_count as f64).sqrt() } else { f64::NAN };
+        st.estimator_error_m_s = if est_count > 0 {
+            (est_sq / est_count as f64).sqrt()
+        } else {
+            f64::NAN
+        };
         if st.episodes > 0 {
             st.episode_return /= st.episodes as f64;
             st.episode_length /= st.episodes as f64;
@@ -248,14 +268,25 @@ impl Runner {
         let t0 = Instant::now();
         let ro = self.collect()?;
         let t1 = Instant::now();
-        let priors = self.priors.as_mut().map(|p| p.as_mut() as &mut dyn MotionPriorSource);
+        let priors = self
+            .priors
+            .as_mut()
+            .map(|p| p.as_mut() as &mut dyn MotionPriorSource);
         let up = self.ppo.update(&self.storage, priors, self.iteration)?;
         // Normalizers move between iterations, never within one: the rollout's action
         // log-probabilities and values stay those of the policy being updated.
         let s = &self.storage;
-        self.ppo.ac.update_normalizers(&s.actor_obs, &s.history, &s.privileged, &s.heights)?;
+        self.ppo
+            .ac
+            .update_normalizers(&s.actor_obs, &s.history, &s.privileged, &s.heights)?;
         let t2 = Instant::now();
-        let row = metrics_row(self.iteration, &ro, &up, (t1 - t0).as_secs_f64(), (t2 - t1).as_secs_f64());
+        let row = metrics_row(
+            self.iteration,
+            &ro,
+            &up,
+            (t1 - t0).as_secs_f64(),
+            (t2 - t1).as_secs_f64(),
+        );
         self.metrics.push(row.clone());
         self.iteration += 1;
         Ok(row)
@@ -263,7 +294,10 @@ impl Runner {
 
     /// Writes a checkpoint `checkpoints/model_<iteration>` and returns its directory.
     pub fn save(&mut self) -> Result<PathBuf, TrainError> {
-        let dir = self.run_dir.join("checkpoints").join(format!("model_{:06}", self.iteration));
+        let dir = self
+            .run_dir
+            .join("checkpoints")
+            .join(format!("model_{:06}", self.iteration));
         checkpoint::save(&dir, &self.ppo, self.iteration)?;
         self.last_checkpoint = Some(dir.clone());
         Ok(dir)
@@ -272,10 +306,18 @@ impl Runner {
     /// Writes `metrics.csv` and the plots.
     pub fn write_metrics(&self, plots: bool) -> Result<(), TrainError> {
         let csv = self.run_dir.join("metrics.csv");
-        self.metrics.write_csv(&csv).map_err(|source| TrainError::Io { path: csv.display().to_string(), source })?;
+        self.metrics
+            .write_csv(&csv)
+            .map_err(|source| TrainError::Io {
+                path: csv.display().to_string(),
+                source,
+            })?;
         if plots {
             let dir = self.run_dir.join("plots");
-            std::fs::create_dir_all(&dir).map_err(|source| TrainError::Io { path: dir.display().to_string(), source })?;
+            std::fs::create_dir_all(&dir).map_err(|source| TrainError::Io {
+                path: dir.display().to_string(),
+                source,
+            })?;
             if let Err(e) = self.metrics.plot(&dir) {
                 eprintln!("warning: plots not written: {e}");
             }
@@ -291,7 +333,9 @@ impl Runner {
 
     /// True when the stop flag was set.
     pub fn stopped_early(&self) -> bool {
-        self.stop_requested.as_ref().is_some_and(|f| f.load(std::sync::atomic::Ordering::SeqCst))
+        self.stop_requested
+            .as_ref()
+            .is_some_and(|f| f.load(std::sync::atomic::Ordering::SeqCst))
     }
 
     /// Trains until `cfg.runner.max_iterations`, checkpointing every `save_interval`
@@ -302,13 +346,22 @@ impl Runner {
     pub fn learn(&mut self, show_progress: bool) -> Result<PathBuf, RunError> {
         let max = self.ppo.cfg.runner.max_iterations;
         let save_every = self.ppo.cfg.runner.save_interval;
-        let bar = if show_progress { ProgressBar::new(max as u64) } else { ProgressBar::hidden() };
+        let bar = if show_progress {
+            ProgressBar::new(max as u64)
+        } else {
+            ProgressBar::hidden()
+        };
         bar.set_style(
-            ProgressStyle::with_template("{bar:30} {pos}/{len} [{elapsed_precise}<{eta_precise}] {msg}")
-                .expect("valid template"),
+            ProgressStyle::with_template(
+                "{bar:30} {pos}/{len} [{elapsed_precise}<{eta_precise}] {msg}",
+            )
+            .expect("valid template"),
         );
         bar.set_position(self.iteration as u64);
-        let wrap = |source: TrainError, last: &Option<PathBuf>| RunError { source, last_checkpoint: last.clone() };
+        let wrap = |source: TrainError, last: &Option<PathBuf>| RunError {
+            source,
+            last_checkpoint: last.clone(),
+        };
         while self.iteration < max {
             let row = match self.iterate() {
                 Ok(r) => r,
@@ -320,11 +373,16 @@ impl Runner {
             };
             bar.set_position(self.iteration as u64);
             bar.set_message(progress_message(&row));
-            if self.iteration.is_multiple_of(save_every) || self.iteration == max || self.stopped_early() {
+            if self.iteration.is_multiple_of(save_every)
+                || self.iteration == max
+                || self.stopped_early()
+            {
                 self.save().map_err(|e| wrap(e, &self.last_checkpoint))?;
-                self.write_metrics(true).map_err(|e| wrap(e, &self.last_checkpoint))?;
+                self.write_metrics(true)
+                    .map_err(|e| wrap(e, &self.last_checkpoint))?;
             } else {
-                self.write_metrics(false).map_err(|e| wrap(e, &self.last_checkpoint))?;
+                self.write_metrics(false)
+                    .map_err(|e| wrap(e, &self.last_checkpoint))?;
             }
             if self.stopped_early() {
                 bar.abandon();
@@ -360,7 +418,13 @@ fn progress_message(row: &BTreeMap<String, f64>) -> String {
     )
 }
 
-fn metrics_row(it: usize, ro: &RolloutStats, up: &UpdateStats, collect_s: f64, update_s: f64) -> BTreeMap<String, f64> {
+fn metrics_row(
+    it: usize,
+    ro: &RolloutStats,
+    up: &UpdateStats,
+    collect_s: f64,
+    update_s: f64,
+) -> BTreeMap<String, f64> {
     let mut m = BTreeMap::new();
     let mut put = |k: &str, v: f64| {
         m.insert(k.to_string(), v);
@@ -391,7 +455,10 @@ fn metrics_row(it: usize, ro: &RolloutStats, up: &UpdateStats, collect_s: f64, u
     put("train/action_std", up.action_std as f64);
     put("perf/collect_s", collect_s);
     put("perf/update_s", update_s);
-    put("perf/env_steps_per_s", ro.env_steps as f64 / (collect_s + update_s));
+    put(
+        "perf/env_steps_per_s",
+        ro.env_steps as f64 / (collect_s + update_s),
+    );
     for (k, v) in &ro.env_log {
         m.insert(format!("episode/{k}"), *v);
     }

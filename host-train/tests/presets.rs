@@ -11,7 +11,16 @@ use std::path::Path;
 fn every_preset_trains_an_iteration_on_the_simulator() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     for name in [
-        "default", "ablation-gs", "ablation-gl", "ablation-gsl", "baseline", "concurrent", "paper", "flat-tripod", "rough-tripod", "rough-climb",
+        "default",
+        "ablation-gs",
+        "ablation-gl",
+        "ablation-gsl",
+        "baseline",
+        "concurrent",
+        "paper",
+        "flat-tripod",
+        "rough-tripod",
+        "rough-climb",
         "rough-climb-hard",
     ] {
         let mut cfg = TrainConfig::load(&root.join(format!("configs/{name}.toml"))).unwrap();
@@ -25,12 +34,21 @@ fn every_preset_trains_an_iteration_on_the_simulator() {
         cfg.validate().unwrap();
         let priors = load_prior_source(&cfg).unwrap();
         assert_eq!(priors.is_some(), cfg.amp_enabled(), "{name}");
-        let dir = std::env::temp_dir().join(format!("hexapod-preset-{name}-{}", std::process::id()));
+        let dir =
+            std::env::temp_dir().join(format!("hexapod-preset-{name}-{}", std::process::id()));
         let mut runner = Runner::new(&cfg, make_env(&cfg).unwrap(), priors, &dir).unwrap();
         let row = runner.iterate().unwrap_or_else(|e| panic!("{name}: {e}"));
         assert!(row["loss/value"].is_finite(), "{name}");
-        assert_eq!(row["amp/d_prior"] != 0.0, cfg.amp_enabled(), "{name}: discriminator trained iff style is on");
-        assert_eq!(row["estimator/error_m_s"].is_finite(), cfg.policy.use_estimator, "{name}");
+        assert_eq!(
+            row["amp/d_prior"] != 0.0,
+            cfg.amp_enabled(),
+            "{name}: discriminator trained iff style is on"
+        );
+        assert_eq!(
+            row["estimator/error_m_s"].is_finite(),
+            cfg.policy.use_estimator,
+            "{name}"
+        );
         runner.save().unwrap();
         std::fs::remove_dir_all(&dir).ok();
     }

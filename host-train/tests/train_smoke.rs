@@ -23,7 +23,13 @@ fn run_dir(name: &str) -> PathBuf {
 }
 
 fn env_for(cfg: &TrainConfig) -> Box<dyn VecEnv> {
-    Box::new(PointMassEnv::new(cfg.env.num_envs, cfg.env.fake_episode_steps, cfg.rewards.task, cfg.rewards.penalties, cfg.env.seed))
+    Box::new(PointMassEnv::new(
+        cfg.env.num_envs,
+        cfg.env.fake_episode_steps,
+        cfg.rewards.task,
+        cfg.rewards.penalties,
+        cfg.env.seed,
+    ))
 }
 
 fn priors() -> Option<Box<dyn MotionPriorSource>> {
@@ -61,7 +67,10 @@ fn ppo_with_amp_learns_and_resumes() {
     let mut resumed = Runner::new(&cfg2, env_for(&cfg2), priors(), &run_dir("resume")).unwrap();
     resumed.resume(&mid).unwrap();
     assert_eq!(resumed.iteration, 20);
-    assert!(resumed.ppo.ac.norm_actor.count() > 0.0, "normalizers restored");
+    assert!(
+        resumed.ppo.ac.norm_actor.count() > 0.0,
+        "normalizers restored"
+    );
     resumed.learn(false).unwrap();
     assert_eq!(resumed.metrics.rows().len(), 2);
     std::fs::remove_dir_all(&dir).ok();
@@ -101,17 +110,32 @@ fn nan_loss_stops_the_run_and_keeps_the_last_good_checkpoint() {
     cfg.runner.max_iterations = 10;
     cfg.runner.save_interval = 2;
     let steps = cfg.ppo.num_steps_per_env;
-    let env = PoisonedEnv { inner: PointMassEnv::new(8, 100, true, true, 1), steps: 0, after: 3 * steps + 5 };
+    let env = PoisonedEnv {
+        inner: PointMassEnv::new(8, 100, true, true, 1),
+        steps: 0,
+        after: 3 * steps + 5,
+    };
     let dir = run_dir("nan");
     let mut runner = Runner::new(&cfg, Box::new(env), priors(), &dir).unwrap();
     let err = runner.learn(false).unwrap_err();
-    assert!(matches!(err.source, TrainError::Learner(PpoError::NonFiniteLoss { iteration: 3, .. })), "{err}");
+    assert!(
+        matches!(
+            err.source,
+            TrainError::Learner(PpoError::NonFiniteLoss { iteration: 3, .. })
+        ),
+        "{err}"
+    );
     let good = dir.join("checkpoints/model_000002");
     assert_eq!(err.last_checkpoint.as_deref(), Some(good.as_path()));
     assert!(err.to_string().contains("model_000002"), "{err}");
     // The last good checkpoint loads and holds finite weights.
     let (_, ppo) = checkpoint::load_for_inference(&good).unwrap();
-    let w = ppo.ac.actor.layers()[0].weight().flatten_all().unwrap().to_vec1::<f32>().unwrap();
+    let w = ppo.ac.actor.layers()[0]
+        .weight()
+        .flatten_all()
+        .unwrap()
+        .to_vec1::<f32>()
+        .unwrap();
     assert!(w.iter().all(|x| x.is_finite()));
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -264,7 +264,10 @@ mod tests {
         for leg in Leg::ALL {
             let foot = crate::kinematics::foot_position_base(leg, Q0_LEG_RAD);
             let height_m = -foot[2] + FOOT_RADIUS_M;
-            assert!((height_m - NOMINAL_BASE_HEIGHT_M).abs() < 0.005, "{leg:?}: {height_m}");
+            assert!(
+                (height_m - NOMINAL_BASE_HEIGHT_M).abs() < 0.005,
+                "{leg:?}: {height_m}"
+            );
         }
     }
 

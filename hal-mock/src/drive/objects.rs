@@ -275,10 +275,8 @@ impl Objects {
                     return Err(abort::DEVICE_STATE);
                 }
             }
-            2 => {
-                if (241..=253).contains(&(value as u8)) {
-                    return Err(abort::VALUE_RANGE);
-                }
+            2 if (241..=253).contains(&(value as u8)) => {
+                return Err(abort::VALUE_RANGE);
             }
             _ => {}
         }

@@ -6,7 +6,11 @@ use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
 #[derive(Parser)]
-#[command(name = "hexapod-sim", version, about = "Hexapod simulator: demo and benchmarks")]
+#[command(
+    name = "hexapod-sim",
+    version,
+    about = "Hexapod simulator: demo and benchmarks"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -44,7 +48,12 @@ enum Command {
 
 fn main() -> anyhow::Result<()> {
     match Cli::parse().command {
-        Command::Demo { out, stand_s, walk_s, speed_m_s } => host_sim::demo::run(&out, stand_s, walk_s, speed_m_s),
+        Command::Demo {
+            out,
+            stand_s,
+            walk_s,
+            speed_m_s,
+        } => host_sim::demo::run(&out, stand_s, walk_s, speed_m_s),
         Command::Bench(args) => host_sim::bench::run(&args),
         Command::Urdf { out, check } => host_sim::urdf_gen::write_or_check(&out, check),
     }

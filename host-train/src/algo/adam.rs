@@ -45,7 +45,14 @@ impl Adam {
                 })
             })
             .collect::<Result<Vec<_>>>()?;
-        Ok(Self { slots, step_count: 0, lr, beta1: 0.9, beta2: 0.999, eps: 1e-8 })
+        Ok(Self {
+            slots,
+            step_count: 0,
+            lr,
+            beta1: 0.9,
+            beta2: 0.999,
+            eps: 1e-8,
+        })
     }
 
     /// Sets each variable's L2 weight decay from its name (torch's `weight_decay`, coupled:
@@ -62,7 +69,11 @@ impl Adam {
         let mut sq = 0.0f64;
         for s in &self.slots {
             if let Some(g) = grads.get(s.var.as_tensor()) {
-                sq += g.sqr()?.sum_all()?.to_dtype(candle_core::DType::F64)?.to_scalar::<f64>()?;
+                sq += g
+                    .sqr()?
+                    .sum_all()?
+                    .to_dtype(candle_core::DType::F64)?
+                    .to_scalar::<f64>()?;
             }
         }
         Ok(sq.sqrt())
@@ -82,8 +93,14 @@ impl Adam {
         let bias2 = 1.0 - self.beta2.powi(t);
         let step_size = self.lr / bias1;
         for s in &self.slots {
-            let Some(g) = grads.get(s.var.as_tensor()) else { continue };
-            let g = if scale != 1.0 { (g * scale)? } else { g.clone() };
+            let Some(g) = grads.get(s.var.as_tensor()) else {
+                continue;
+            };
+            let g = if scale != 1.0 {
+                (g * scale)?
+            } else {
+                g.clone()
+            };
             let g = if s.weight_decay != 0.0 {
                 (g + (s.var.as_tensor() * s.weight_decay)?)?
             } else {
@@ -107,9 +124,19 @@ impl Adam {
             out.push((format!("{prefix}.{}.m", s.name), s.m.as_tensor().clone()));
             out.push((format!("{prefix}.{}.v", s.name), s.v.as_tensor().clone()));
         }
-        let dev = self.slots.first().map(|s| s.var.device().clone()).unwrap_or(candle_core::Device::Cpu);
-        out.push((format!("{prefix}.step"), Tensor::new(&[self.step_count as f32], &dev)?));
-        out.push((format!("{prefix}.lr"), Tensor::new(&[self.lr as f32], &dev)?));
+        let dev = self
+            .slots
+            .first()
+            .map(|s| s.var.device().clone())
+            .unwrap_or(candle_core::Device::Cpu);
+        out.push((
+            format!("{prefix}.step"),
+            Tensor::new(&[self.step_count as f32], &dev)?,
+        ));
+        out.push((
+            format!("{prefix}.lr"),
+            Tensor::new(&[self.lr as f32], &dev)?,
+        ));
         Ok(out)
     }
 
@@ -168,7 +195,10 @@ mod tests {
         let after = w.to_vec1::<f32>().unwrap();
         assert!((after[0] - 0.9).abs() < 1e-5, "{after:?}");
         // The loss does not depend on w[1]: its gradient is zero, and decay alone moves it.
-        assert!((after[1] - 0.9).abs() < 1e-5, "decay alone moves it by lr: {after:?}");
+        assert!(
+            (after[1] - 0.9).abs() < 1e-5,
+            "decay alone moves it by lr: {after:?}"
+        );
     }
 
     #[test]
@@ -185,6 +215,9 @@ mod tests {
         b.load_state("opt", &state).unwrap();
         assert_eq!(b.step_count, 1);
         assert!((b.lr - 0.003).abs() < 1e-9);
-        assert_eq!(b.slots[0].m.to_vec1::<f32>().unwrap(), a.slots[0].m.to_vec1::<f32>().unwrap());
+        assert_eq!(
+            b.slots[0].m.to_vec1::<f32>().unwrap(),
+            a.slots[0].m.to_vec1::<f32>().unwrap()
+        );
     }
 }

@@ -14,8 +14,10 @@ use candle_core::{DType, Device, Result, Tensor};
 use candle_nn::VarMap;
 use hexapod_core::amp::AMP_STATE_DIM;
 use hexapod_core::nets::{ACTOR_OUT, ESTIMATOR_OUT};
+use hexapod_core::obs::{
+    ACTOR_OBS_DIM, HEIGHT_SCAN_DIM, HISTORY_DIM, PRIVILEGED_DIM, PRIV_LIN_VEL,
+};
 use hexapod_core::timing::POLICY_DT_S;
-use hexapod_core::obs::{ACTOR_OBS_DIM, HEIGHT_SCAN_DIM, HISTORY_DIM, PRIVILEGED_DIM, PRIV_LIN_VEL};
 use host_sim::vec_env::Observations;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -88,12 +90,36 @@ impl Minibatch {
     pub fn gather(storage: &RolloutStorage, idx: &[usize], dev: &Device) -> Result<Self> {
         let col = |v: &[f32]| Tensor::from_vec(gather_rows(v, 1, idx), idx.len(), dev);
         Ok(Self {
-            actor: tensor(gather_rows(&storage.actor_obs, ACTOR_OBS_DIM, idx), ACTOR_OBS_DIM, dev)?,
-            history: tensor(gather_rows(&storage.history, HISTORY_DIM, idx), HISTORY_DIM, dev)?,
-            privileged: tensor(gather_rows(&storage.privileged, PRIVILEGED_DIM, idx), PRIVILEGED_DIM, dev)?,
-            heights: tensor(gather_rows(&storage.heights, HEIGHT_SCAN_DIM, idx), HEIGHT_SCAN_DIM, dev)?,
-            actions: tensor(gather_rows(&storage.actions, ACTOR_OUT, idx), ACTOR_OUT, dev)?,
-            old_mean: tensor(gather_rows(&storage.action_mean, ACTOR_OUT, idx), ACTOR_OUT, dev)?,
+            actor: tensor(
+                gather_rows(&storage.actor_obs, ACTOR_OBS_DIM, idx),
+                ACTOR_OBS_DIM,
+                dev,
+            )?,
+            history: tensor(
+                gather_rows(&storage.history, HISTORY_DIM, idx),
+                HISTORY_DIM,
+                dev,
+            )?,
+            privileged: tensor(
+                gather_rows(&storage.privileged, PRIVILEGED_DIM, idx),
+                PRIVILEGED_DIM,
+                dev,
+            )?,
+            heights: tensor(
+                gather_rows(&storage.heights, HEIGHT_SCAN_DIM, idx),
+                HEIGHT_SCAN_DIM,
+                dev,
+            )?,
+            actions: tensor(
+                gather_rows(&storage.actions, ACTOR_OUT, idx),
+                ACTOR_OUT,
+                dev,
+            )?,
+            old_mean: tensor(
+                gather_rows(&storage.action_mean, ACTOR_OUT, idx),
+                ACTOR_OUT,
+                dev,
+            )?,
             old_log_probs: col(&storage.log_probs)?,
             advantages: col(&storage.advantages)?,
             old_values: col(&storage.values)?,
@@ -205,7 +231,10 @@ pub fn ppo_losses(
 /// The discriminator's L2 weight decay for variable `name`: `logit_weight_decay` on the
 /// output layer's weight, `weight_decay` on hidden weights, none on biases.
 fn disc_weight_decay(amp: &crate::config::AmpConfig, name: &str) -> f64 {
-    let output = format!("discriminator.layers.{}.weight", amp.discriminator_hidden.len());
+    let output = format!(
+        "discriminator.layers.{}.weight",
+        amp.discriminator_hidden.len()
+    );
     if name == output {
         amp.logit_weight_decay
     } else if name.ends_with(".weight") {
@@ -231,11 +260,19 @@ fn with_noise(x: Tensor, sigma: f32, rng: &mut ChaCha8Rng) -> Result<Tensor> {
 }
 
 /// Mean KL(old || new) of diagonal Gaussians, rsl_rl's formula.
-pub fn gaussian_kl(old_mean: &Tensor, old_log_std: &Tensor, mean: &Tensor, log_std: &Tensor) -> Result<f32> {
+pub fn gaussian_kl(
+    old_mean: &Tensor,
+    old_log_std: &Tensor,
+    mean: &Tensor,
+    log_std: &Tensor,
+) -> Result<f32> {
     let var_ratio = old_log_std.sub(log_std)?.affine(2.0, 0.0)?.exp()?; // sigma_old^2 / sigma^2
     let inv_var = log_std.affine(-2.0, 0.0)?.exp()?;
     let d2 = old_mean.sub(mean)?.sqr()?.broadcast_mul(&inv_var)?; // (mu_old - mu)^2 / sigma^2
-    let per = d2.broadcast_add(&var_ratio)?.affine(0.5, -0.5)?.broadcast_add(&log_std.sub(old_log_std)?)?;
+    let per = d2
+        .broadcast_add(&var_ratio)?
+        .affine(0.5, -0.5)?
+        .broadcast_add(&log_std.sub(old_log_std)?)?;
     per.sum(1)?.mean_all()?.to_scalar::<f32>()
 }
 
@@ -251,10 +288,20 @@ impl Ppo {
         let (params, stats, disc_params) = (VarMap::new(), VarMap::new(), VarMap::new());
         let ac = ActorCritic::new(&cfg.policy, &params, &stats, DType::F32, &device)?;
         let (disc, disc_opt, transitions) = if cfg.amp_enabled() {
-            let d = Discriminator::new(&cfg.amp.discriminator_hidden, &disc_params, &stats, DType::F32, &device)?;
+            let d = Discriminator::new(
+                &cfg.amp.discriminator_hidden,
+                &disc_params,
+                &stats,
+                DType::F32,
+                &device,
+            )?;
             let opt = Adam::new(&disc_params, cfg.amp.learning_rate)?
                 .with_weight_decay(|name| disc_weight_decay(&cfg.amp, name));
-            (Some(d), Some(opt), Some(TransitionBuffer::new(cfg.amp.replay_buffer_size)))
+            (
+                Some(d),
+                Some(opt),
+                Some(TransitionBuffer::new(cfg.amp.replay_buffer_size)),
+            )
         } else {
             (None, None, None)
         };
@@ -277,7 +324,11 @@ impl Ppo {
     /// Samples actions for observations; `deterministic` returns the means.
     pub fn act(&mut self, obs: &Observations, deterministic: bool) -> Result<ActOutput> {
         let dev = &self.device;
-        let actor = Tensor::from_slice(&obs.actor, (obs.actor.len() / ACTOR_OBS_DIM, ACTOR_OBS_DIM), dev)?;
+        let actor = Tensor::from_slice(
+            &obs.actor,
+            (obs.actor.len() / ACTOR_OBS_DIM, ACTOR_OBS_DIM),
+            dev,
+        )?;
         let n = actor.dims()[0];
         let history = Tensor::from_slice(&obs.history, (n, HISTORY_DIM), dev)?;
         let out = self.ac.policy(&actor, &history)?;
@@ -300,13 +351,24 @@ impl Ppo {
         let heights = Tensor::from_slice(&obs.heights, (n, HEIGHT_SCAN_DIM), dev)?;
         let values = self
             .ac
-            .value(&CriticInput { actor_obs: &actor, history: &history, privileged: &privileged, heights: &heights })?
+            .value(&CriticInput {
+                actor_obs: &actor,
+                history: &history,
+                privileged: &privileged,
+                heights: &heights,
+            })?
             .to_vec1::<f32>()?;
         let estimate = match out.estimate {
             Some(e) => e.flatten_all()?.to_vec1::<f32>()?,
             None => Vec::new(),
         };
-        Ok(ActOutput { actions, mean, values, log_probs, estimate })
+        Ok(ActOutput {
+            actions,
+            mean,
+            values,
+            log_probs,
+            estimate,
+        })
     }
 
     /// Values `[N]` of observations (for the bootstrap after the last step).
@@ -318,7 +380,12 @@ impl Ppo {
         let privileged = Tensor::from_slice(&obs.privileged, (n, PRIVILEGED_DIM), dev)?;
         let heights = Tensor::from_slice(&obs.heights, (n, HEIGHT_SCAN_DIM), dev)?;
         self.ac
-            .value(&CriticInput { actor_obs: &actor, history: &history, privileged: &privileged, heights: &heights })?
+            .value(&CriticInput {
+                actor_obs: &actor,
+                history: &history,
+                privileged: &privileged,
+                heights: &heights,
+            })?
             .to_vec1::<f32>()
     }
 
@@ -357,7 +424,12 @@ impl Ppo {
                     (Some(transitions), Some(src)) if self.disc.is_some() => {
                         let (policy_s, policy_sn) = transitions.sample(idx.len(), &mut self.rng);
                         let (prior_s, prior_sn) = src.sample(idx.len(), &mut self.rng);
-                        Some(AmpBatch { policy_s, policy_sn, prior_s, prior_sn })
+                        Some(AmpBatch {
+                            policy_s,
+                            policy_sn,
+                            prior_s,
+                            prior_sn,
+                        })
                     }
                     _ => None,
                 };
@@ -436,8 +508,12 @@ impl Ppo {
             p.use_clipped_value_loss,
         )?;
         let entropy = self.ac.entropy()?;
-        let mut loss = ((&surr + (&vloss * p.value_loss_coef as f64)?)? - (&entropy * p.entropy_coef as f64)?)?;
-        let mut st = UpdateStats { kl, ..Default::default() };
+        let mut loss = ((&surr + (&vloss * p.value_loss_coef as f64)?)?
+            - (&entropy * p.entropy_coef as f64)?)?;
+        let mut st = UpdateStats {
+            kl,
+            ..Default::default()
+        };
         if let Some(estimate) = &out.estimate {
             let target = mb.privileged.narrow(1, PRIV_LIN_VEL.start, ESTIMATOR_OUT)?;
             let est_loss = estimate.sub(&target)?.sqr()?.mean_all()?;
@@ -446,10 +522,16 @@ impl Ppo {
         }
         if let (Some(disc), Some(a)) = (&self.disc, amp) {
             let sigma = self.cfg.amp.input_noise_std;
-            let policy_in = with_noise(disc.input(&a.policy_s, &a.policy_sn)?, sigma, &mut self.rng)?;
+            let policy_in =
+                with_noise(disc.input(&a.policy_s, &a.policy_sn)?, sigma, &mut self.rng)?;
             let prior_in = with_noise(disc.input(&a.prior_s, &a.prior_sn)?, sigma, &mut self.rng)?;
-            let dl = disc.loss(&prior_in, &policy_in, self.cfg.amp.grad_penalty_weight as f64)?;
-            (st.disc_loss, st.grad_penalty, st.d_prior, st.d_policy) = (dl.ls_loss, dl.grad_penalty, dl.d_prior, dl.d_policy);
+            let dl = disc.loss(
+                &prior_in,
+                &policy_in,
+                self.cfg.amp.grad_penalty_weight as f64,
+            )?;
+            (st.disc_loss, st.grad_penalty, st.d_prior, st.d_policy) =
+                (dl.ls_loss, dl.grad_penalty, dl.d_prior, dl.d_policy);
             loss = (loss + (dl.total * self.cfg.amp.loss_coef as f64)?)?;
         }
         let loss_v = loss.to_scalar::<f32>()?;
@@ -488,7 +570,10 @@ impl Ppo {
         if let Some(transitions) = &mut self.transitions {
             if invalid.iter().any(|&x| x) {
                 let keep: Vec<usize> = (0..invalid.len()).filter(|&i| !invalid[i]).collect();
-                transitions.insert(&gather_rows(amp, AMP_STATE_DIM, &keep), &gather_rows(amp_next, AMP_STATE_DIM, &keep));
+                transitions.insert(
+                    &gather_rows(amp, AMP_STATE_DIM, &keep),
+                    &gather_rows(amp_next, AMP_STATE_DIM, &keep),
+                );
             } else {
                 transitions.insert(amp, amp_next);
             }

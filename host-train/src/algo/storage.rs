@@ -135,14 +135,26 @@ impl RolloutStorage {
     /// Computes advantages and returns by GAE from the values of the observations after the
     /// last step, then normalizes the advantages over the whole rollout.
     pub fn compute_returns(&mut self, last_values: &[f32], gamma: f32, lam: f32) {
-        let (adv, ret) = gae(&self.rewards, &self.values, &self.dones, last_values, self.num_envs, gamma, lam);
+        let (adv, ret) = gae(
+            &self.rewards,
+            &self.values,
+            &self.dones,
+            last_values,
+            self.num_envs,
+            gamma,
+            lam,
+        );
         self.advantages = adv;
         self.returns = ret;
         normalize_in_place(&mut self.advantages);
     }
 
     /// Shuffled minibatch index sets covering the rollout once.
-    pub fn minibatch_indices<R: Rng>(&self, num_mini_batches: usize, rng: &mut R) -> Vec<Vec<usize>> {
+    pub fn minibatch_indices<R: Rng>(
+        &self,
+        num_mini_batches: usize,
+        rng: &mut R,
+    ) -> Vec<Vec<usize>> {
         let mut idx: Vec<usize> = (0..self.len()).collect();
         idx.shuffle(rng);
         let size = self.len() / num_mini_batches;

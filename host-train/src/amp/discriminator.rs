@@ -42,7 +42,13 @@ pub struct Discriminator {
 
 impl Discriminator {
     /// Builds the network under `discriminator.*` in `params`, the normalizer in `stats`.
-    pub fn new(hidden: &[usize], params: &VarMap, stats: &VarMap, dtype: DType, device: &Device) -> Result<Self> {
+    pub fn new(
+        hidden: &[usize],
+        params: &VarMap,
+        stats: &VarMap,
+        dtype: DType,
+        device: &Device,
+    ) -> Result<Self> {
         let vb = VarBuilder::from_varmap(params, dtype, device);
         Ok(Self {
             net: Mlp::new(DISC_IN, hidden, 1, vb.pp("discriminator"))?,
@@ -68,15 +74,27 @@ impl Discriminator {
     }
 
     /// Style rewards `[n]` (unweighted) and raw outputs `d` for policy transitions.
-    pub fn style_reward(&self, states: &[f32], next_states: &[f32]) -> Result<(Vec<f32>, Vec<f32>)> {
-        let d = self.forward(&self.input(states, next_states)?)?.to_dtype(DType::F32)?.to_vec1::<f32>()?;
+    pub fn style_reward(
+        &self,
+        states: &[f32],
+        next_states: &[f32],
+    ) -> Result<(Vec<f32>, Vec<f32>)> {
+        let d = self
+            .forward(&self.input(states, next_states)?)?
+            .to_dtype(DType::F32)?
+            .to_vec1::<f32>()?;
         let r = d.iter().map(|&d| style_reward_of(d)).collect();
         Ok((r, d))
     }
 
     /// The least-squares loss with gradient penalty on prior inputs `[n, 122]` and policy
     /// inputs `[m, 122]` (both normalized).
-    pub fn loss(&self, prior: &Tensor, policy: &Tensor, grad_penalty_weight: f64) -> Result<DiscriminatorLoss> {
+    pub fn loss(
+        &self,
+        prior: &Tensor,
+        policy: &Tensor,
+        grad_penalty_weight: f64,
+    ) -> Result<DiscriminatorLoss> {
         let (d_prior_out, pre) = self.net.forward_with_preactivations(prior)?;
         let d_prior = d_prior_out.squeeze(1)?;
         let d_policy = self.forward(policy)?;
@@ -122,7 +140,9 @@ mod tests {
         let (params, stats) = (VarMap::new(), VarMap::new());
         let disc = Discriminator::new(&[9, 7], &params, &stats, DType::F64, &dev).unwrap();
         let n = 4;
-        let x: Vec<f64> = (0..n * DISC_IN).map(|i| ((i * 7919 % 101) as f64 / 50.0 - 1.0) * 1.5).collect();
+        let x: Vec<f64> = (0..n * DISC_IN)
+            .map(|i| ((i * 7919 % 101) as f64 / 50.0 - 1.0) * 1.5)
+            .collect();
         let prior = Tensor::from_vec(x, (n, DISC_IN), &dev).unwrap();
         let penalty = |d: &Discriminator| -> Tensor {
             let (_, pre) = d.net.forward_with_preactivations(&prior).unwrap();
@@ -132,23 +152,45 @@ mod tests {
         let grads = penalty(&disc).backward().unwrap();
         let data = params.data().lock().unwrap();
         let mut checked = 0;
-        for key in ["discriminator.layers.0.weight", "discriminator.layers.1.weight", "discriminator.layers.1.bias", "discriminator.layers.2.weight"] {
+        for key in [
+            "discriminator.layers.0.weight",
+            "discriminator.layers.1.weight",
+            "discriminator.layers.1.bias",
+            "discriminator.layers.2.weight",
+        ] {
             let var = data.get(key).unwrap().clone();
-            let analytic = grads.get(var.as_tensor()).unwrap().flatten_all().unwrap().to_vec1::<f64>().unwrap();
-            let base = var.as_tensor().flatten_all().unwrap().to_vec1::<f64>().unwrap();
+            let analytic = grads
+                .get(var.as_tensor())
+                .unwrap()
+                .flatten_all()
+                .unwrap()
+                .to_vec1::<f64>()
+                .unwrap();
+            let base = var
+                .as_tensor()
+                .flatten_all()
+                .unwrap()
+                .to_vec1::<f64>()
+                .unwrap();
             let shape = var.shape().clone();
             for k in (0..base.len()).step_by(base.len() / 5 + 1) {
                 let eps = 1e-5;
                 let eval = |d: f64| {
                     let mut w = base.clone();
                     w[k] += d;
-                    var.set(&Tensor::from_vec(w, shape.clone(), &dev).unwrap()).unwrap();
+                    var.set(&Tensor::from_vec(w, shape.clone(), &dev).unwrap())
+                        .unwrap();
                     penalty(&disc).to_scalar::<f64>().unwrap()
                 };
                 let fd = (eval(eps) - eval(-eps)) / (2.0 * eps);
-                var.set(&Tensor::from_vec(base.clone(), shape.clone(), &dev).unwrap()).unwrap();
+                var.set(&Tensor::from_vec(base.clone(), shape.clone(), &dev).unwrap())
+                    .unwrap();
                 let tol = 1e-6 * (1.0 + fd.abs());
-                assert!((fd - analytic[k]).abs() < tol, "{key}[{k}]: fd {fd} analytic {}", analytic[k]);
+                assert!(
+                    (fd - analytic[k]).abs() < tol,
+                    "{key}[{k}]: fd {fd} analytic {}",
+                    analytic[k]
+                );
                 checked += 1;
             }
         }
@@ -164,12 +206,20 @@ mod tests {
         let mut opt = Adam::new(&params, 1e-3).unwrap();
         let n = 64;
         let prior = Tensor::ones((n, DISC_IN), DType::F32, &dev).unwrap();
-        let policy = Tensor::ones((n, DISC_IN), DType::F32, &dev).unwrap().neg().unwrap();
+        let policy = Tensor::ones((n, DISC_IN), DType::F32, &dev)
+            .unwrap()
+            .neg()
+            .unwrap();
         for _ in 0..300 {
             let l = disc.loss(&prior, &policy, 1.0).unwrap();
             opt.step(&l.total.backward().unwrap(), None).unwrap();
         }
         let l = disc.loss(&prior, &policy, 1.0).unwrap();
-        assert!(l.d_prior > 0.5 && l.d_policy < -0.5, "{} {}", l.d_prior, l.d_policy);
+        assert!(
+            l.d_prior > 0.5 && l.d_policy < -0.5,
+            "{} {}",
+            l.d_prior,
+            l.d_policy
+        );
     }
 }

@@ -1,10 +1,10 @@
 //! Where prior (expert) AMP transitions come from: the motion-prior dataset, or a synthetic
 //! tripod oscillation for tests and smoke runs.
 
+use crate::priors::dataset::MotionDataset;
 use hexapod_core::amp::{amp_state, AMP_STATE_DIM};
 use hexapod_core::robot::{Leg, NUM_JOINTS, Q0_RAD};
 use hexapod_core::timing::POLICY_DT_S;
-use crate::priors::dataset::MotionDataset;
 use host_sim::reference::ReferenceState;
 use rand::{Rng, RngCore};
 
@@ -29,7 +29,10 @@ pub struct SyntheticTripod {
 
 impl Default for SyntheticTripod {
     fn default() -> Self {
-        Self { frequency_hz: 1.5, speed_m_s: 0.3 }
+        Self {
+            frequency_hz: 1.5,
+            speed_m_s: 0.3,
+        }
     }
 }
 
@@ -40,7 +43,11 @@ impl SyntheticTripod {
         let mut q = Q0_RAD;
         let mut qd = [0.0f32; NUM_JOINTS];
         for leg in Leg::ALL {
-            let offset = if leg.tripod() == hexapod_core::robot::Tripod::A { 0.0 } else { std::f32::consts::PI };
+            let offset = if leg.tripod() == hexapod_core::robot::Tripod::A {
+                0.0
+            } else {
+                std::f32::consts::PI
+            };
             let p = phase_rad + offset;
             let j = 3 * leg.index();
             // Hip sweeps, thigh lifts during the half period the hip swings forward.
@@ -48,9 +55,19 @@ impl SyntheticTripod {
             qd[j] = 0.2 * omega * p.cos();
             let lift = (-p.cos()).max(0.0);
             q[j + 1] -= 0.3 * lift;
-            qd[j + 1] = if lift > 0.0 { -0.3 * omega * p.sin() } else { 0.0 };
+            qd[j + 1] = if lift > 0.0 {
+                -0.3 * omega * p.sin()
+            } else {
+                0.0
+            };
         }
-        amp_state(&q, &qd, [self.speed_m_s, 0.0, 0.0], [0.0; 3], [0.0, 0.0, 1.0])
+        amp_state(
+            &q,
+            &qd,
+            [self.speed_m_s, 0.0, 0.0],
+            [0.0; 3],
+            [0.0, 0.0, 1.0],
+        )
     }
 }
 
@@ -87,12 +104,17 @@ pub fn load_prior_source(
         PriorKind::Dataset => {
             let dir = crate::config::resolve_path(&cfg.amp.priors_dir);
             let dataset = MotionDataset::load(&dir, cfg.amp.prior_states).map_err(|e| {
-                PriorSourceError(format!("{e} (generate the clips with `hexapod priors`, or set amp.priors_dir)"))
+                PriorSourceError(format!(
+                    "{e} (generate the clips with `hexapod priors`, or set amp.priors_dir)"
+                ))
             })?;
             let sim = cfg.resolved_sim();
             let c = &sim.commands;
             dataset
-                .check_command_coverage([c.lin_vel_x_m_s, c.lin_vel_y_m_s, c.ang_vel_z_rad_s], c.zero_probability)
+                .check_command_coverage(
+                    [c.lin_vel_x_m_s, c.lin_vel_y_m_s, c.ang_vel_z_rad_s],
+                    c.zero_probability,
+                )
                 .map_err(|e| PriorSourceError(e.to_string()))?;
             Ok(Some(Box::new(dataset)))
         }
@@ -129,10 +151,19 @@ mod tests {
         let mut src = load_prior_source(&cfg).unwrap().unwrap();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
         let (s, sn) = src.sample(32, &mut rng);
-        assert_eq!((s.len(), sn.len()), (32 * AMP_STATE_DIM, 32 * AMP_STATE_DIM));
+        assert_eq!(
+            (s.len(), sn.len()),
+            (32 * AMP_STATE_DIM, 32 * AMP_STATE_DIM)
+        );
         // Consecutive frames: joint angles move by little (< 0.3 rad in 20 ms).
-        for (a, b) in s.chunks_exact(AMP_STATE_DIM).zip(sn.chunks_exact(AMP_STATE_DIM)) {
-            assert!(a[..18].iter().zip(&b[..18]).all(|(x, y)| (x - y).abs() < 0.3));
+        for (a, b) in s
+            .chunks_exact(AMP_STATE_DIM)
+            .zip(sn.chunks_exact(AMP_STATE_DIM))
+        {
+            assert!(a[..18]
+                .iter()
+                .zip(&b[..18])
+                .all(|(x, y)| (x - y).abs() < 0.3));
         }
     }
 
@@ -141,9 +172,18 @@ mod tests {
         let mut cfg = TrainConfig::default();
         cfg.amp.prior_kind = PriorKind::Dataset;
         cfg.amp.priors_dir = "no/such/dir".into();
-        let err = load_prior_source(&cfg).err().expect("must fail").to_string();
-        assert!(err.contains("no/such/dir") && err.contains("hexapod priors"), "{err}");
+        let err = load_prior_source(&cfg)
+            .err()
+            .expect("must fail")
+            .to_string();
+        assert!(
+            err.contains("no/such/dir") && err.contains("hexapod priors"),
+            "{err}"
+        );
         cfg.rewards.style = false;
-        assert!(load_prior_source(&cfg).unwrap().is_none(), "no priors needed without style reward");
+        assert!(
+            load_prior_source(&cfg).unwrap().is_none(),
+            "no priors needed without style reward"
+        );
     }
 }

@@ -38,7 +38,10 @@ impl TransitionBuffer {
     /// Appends transitions (`[n, 61]` each), overwriting the oldest when full.
     pub fn insert(&mut self, states: &[f32], next_states: &[f32]) {
         assert_eq!(states.len(), next_states.len());
-        for (s, sn) in states.chunks_exact(AMP_STATE_DIM).zip(next_states.chunks_exact(AMP_STATE_DIM)) {
+        for (s, sn) in states
+            .chunks_exact(AMP_STATE_DIM)
+            .zip(next_states.chunks_exact(AMP_STATE_DIM))
+        {
             let at = self.next * AMP_STATE_DIM;
             self.states[at..at + AMP_STATE_DIM].copy_from_slice(s);
             self.next_states[at..at + AMP_STATE_DIM].copy_from_slice(sn);
@@ -81,7 +84,10 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
         let (s, sn) = buf.sample(200, &mut rng);
         let mut seen = std::collections::BTreeSet::new();
-        for (a, b) in s.chunks_exact(AMP_STATE_DIM).zip(sn.chunks_exact(AMP_STATE_DIM)) {
+        for (a, b) in s
+            .chunks_exact(AMP_STATE_DIM)
+            .zip(sn.chunks_exact(AMP_STATE_DIM))
+        {
             assert!(a.iter().all(|&x| x == a[0]));
             assert_eq!(b[0], a[0] + 10.0, "pairs stay together");
             seen.insert(a[0] as i32);

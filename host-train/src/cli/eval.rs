@@ -15,10 +15,11 @@ use anyhow::Context;
 use clap::Args;
 use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_STATE_DIM};
 use hexapod_core::obs::{
-    CONTACT_FORCE_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_BASE_HEIGHT, PRIV_CONTACT_FORCES, PRIV_LIN_VEL,
+    CONTACT_FORCE_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_BASE_HEIGHT, PRIV_CONTACT_FORCES,
+    PRIV_LIN_VEL,
 };
-use hexapod_core::timing::POLICY_DT_S;
 use hexapod_core::robot::{NUM_LEGS, TRIPOD_A_MASK, TRIPOD_B_MASK};
+use hexapod_core::timing::POLICY_DT_S;
 use host_sim::mujoco_env::MujocoEnv;
 use host_sim::vec_env::{Observations, StepResult, VecEnv};
 use serde::Serialize;
@@ -29,8 +30,14 @@ pub const CONTACT_THRESHOLD_N: f32 = host_sim::rewards::STANCE_FORCE_N;
 /// Steps ignored after each reset before tracking is measured (1 s).
 pub const SETTLE_STEPS: usize = 50;
 /// The fixed commands `(vx m/s, vy m/s, wz rad/s)` evaluated by default.
-pub const EVAL_COMMANDS: [[f32; 3]; 6] =
-    [[0.3, 0.0, 0.0], [0.6, 0.0, 0.0], [-0.3, 0.0, 0.0], [0.0, 0.3, 0.0], [0.0, 0.0, 0.5], [0.4, 0.0, 0.3]];
+pub const EVAL_COMMANDS: [[f32; 3]; 6] = [
+    [0.3, 0.0, 0.0],
+    [0.6, 0.0, 0.0],
+    [-0.3, 0.0, 0.0],
+    [0.0, 0.3, 0.0],
+    [0.0, 0.0, 0.5],
+    [0.4, 0.0, 0.3],
+];
 
 /// Arguments of `hexapod eval`.
 #[derive(Args, Debug)]
@@ -179,7 +186,11 @@ pub fn speed_error_pct(command: [f32; 3], mean_velocity: [f64; 3]) -> f64 {
 }
 
 /// Runs the push test on the simulator with the environment's own random pushes off.
-fn push_test(cfg: &crate::config::TrainConfig, ppo: &mut crate::algo::ppo::Ppo, n: usize) -> anyhow::Result<PushTestResult> {
+fn push_test(
+    cfg: &crate::config::TrainConfig,
+    ppo: &mut crate::algo::ppo::Ppo,
+    n: usize,
+) -> anyhow::Result<PushTestResult> {
     use host_sim::vec_env::VecEnv;
     use rand::{Rng, SeedableRng};
     let mut sim = cfg.resolved_sim();
@@ -197,10 +208,17 @@ fn push_test(cfg: &crate::config::TrainConfig, ppo: &mut crate::algo::ppo::Ppo, 
     let mut obs = env.reset();
     let (mut fell, mut pushes, mut vx, mut samples) = (vec![false; n], 0usize, 0.0f64, 0usize);
     for step in 0..steps {
-        if step >= every / 2 && (step - every / 2) % every == 0 {
+        if step >= every / 2 && (step - every / 2).is_multiple_of(every) {
             for i in 0..n {
                 let angle: f32 = rng.gen_range(0.0..std::f32::consts::TAU);
-                env.push(i, [PUSH_TEST_M_S * angle.cos(), PUSH_TEST_M_S * angle.sin(), 0.0]);
+                env.push(
+                    i,
+                    [
+                        PUSH_TEST_M_S * angle.cos(),
+                        PUSH_TEST_M_S * angle.sin(),
+                        0.0,
+                    ],
+                );
             }
             pushes += 1;
         }
@@ -229,7 +247,8 @@ fn push_test(cfg: &crate::config::TrainConfig, ppo: &mut crate::algo::ppo::Ppo, 
 pub fn contact_mask(privileged: &[f32]) -> u8 {
     let mut mask = 0u8;
     for leg in 0..NUM_LEGS {
-        let f = &privileged[PRIV_CONTACT_FORCES.start + 3 * leg..PRIV_CONTACT_FORCES.start + 3 * leg + 3];
+        let f = &privileged
+            [PRIV_CONTACT_FORCES.start + 3 * leg..PRIV_CONTACT_FORCES.start + 3 * leg + 3];
         let norm_n = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt() / CONTACT_FORCE_SCALE;
         if norm_n > CONTACT_THRESHOLD_N {
             mask |= 1 << leg;
@@ -357,7 +376,14 @@ pub fn track_command(
                 obs.amp[AMP_BASE_ANG_VEL.start + 2],
             ];
             let t_s = *t0_s + step as f32 * POLICY_DT_S;
-            rec.record(sim.robot_world(0), &sim.contacts(0), t_s, command, measured, p[PRIV_BASE_HEIGHT]);
+            rec.record(
+                sim.robot_world(0),
+                &sim.contacts(0),
+                t_s,
+                command,
+                measured,
+                p[PRIV_BASE_HEIGHT],
+            );
         }
         let res = env.step(&act.actions)?;
         for i in 0..n {
@@ -368,7 +394,8 @@ pub fn track_command(
                     p[PRIV_LIN_VEL.start + 1] / LIN_VEL_SCALE,
                     obs.amp[i * AMP_STATE_DIM + AMP_BASE_ANG_VEL.start + 2],
                 ];
-                lin_err += (((v[0] - command[0]).powi(2) + (v[1] - command[1]).powi(2)) as f64).sqrt();
+                lin_err +=
+                    (((v[0] - command[0]).powi(2) + (v[1] - command[1]).powi(2)) as f64).sqrt();
                 yaw_err += (v[2] - command[2]).abs() as f64;
                 for k in 0..3 {
                     mean_v[k] += v[k] as f64;
@@ -410,7 +437,13 @@ pub fn track_command(
 pub fn table_header() -> String {
     format!(
         "{:>22} {:>12} {:>12} {:>24} {:>10} {:>10} {:>10}",
-        "command (vx,vy,wz)", "lin err m/s", "yaw err r/s", "mean (vx,vy,wz)", "speed err", "fall rate", "tripod"
+        "command (vx,vy,wz)",
+        "lin err m/s",
+        "yaw err r/s",
+        "mean (vx,vy,wz)",
+        "speed err",
+        "fall rate",
+        "tripod"
     )
 }
 
@@ -418,10 +451,16 @@ pub fn table_header() -> String {
 pub fn table_row(r: &CommandResult) -> String {
     format!(
         "{:>22} {:>12.3} {:>12.3} {:>24} {:>9.0}% {:>10.2} {:>10.2}",
-        format!("({:.1},{:.1},{:.1})", r.command[0], r.command[1], r.command[2]),
+        format!(
+            "({:.1},{:.1},{:.1})",
+            r.command[0], r.command[1], r.command[2]
+        ),
         r.lin_vel_error_m_s,
         r.yaw_rate_error_rad_s,
-        format!("({:+.2},{:+.2},{:+.2})", r.mean_velocity[0], r.mean_velocity[1], r.mean_velocity[2]),
+        format!(
+            "({:+.2},{:+.2},{:+.2})",
+            r.mean_velocity[0], r.mean_velocity[1], r.mean_velocity[2]
+        ),
         r.speed_error_pct,
         r.fall_rate,
         r.tripod_score
@@ -461,12 +500,18 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let (mut cfg, mut ppo) = load_for_inference(&checkpoint)?;
     cfg.env.num_envs = args.num_envs;
     if let Some(kind) = &args.env {
-        cfg.env.kind = if kind == "fake" { EnvKind::Fake } else { EnvKind::Sim };
+        cfg.env.kind = if kind == "fake" {
+            EnvKind::Fake
+        } else {
+            EnvKind::Sim
+        };
     }
     let mut env = PlayEnv::new(&cfg)?;
     let mut recording = match (&env, args.rerun) {
         (PlayEnv::Sim(sim), true) => Some(Recording::new(sim.robot_world(0))),
-        (PlayEnv::Other(_), true) => anyhow::bail!("--rerun records the simulator's robot, not the stand-in (env.kind = \"fake\")"),
+        (PlayEnv::Other(_), true) => anyhow::bail!(
+            "--rerun records the simulator's robot, not the stand-in (env.kind = \"fake\")"
+        ),
         (_, false) => None,
     };
     let n = args.num_envs;
@@ -476,13 +521,27 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         let t0_s = (c * args.steps) as f32 * POLICY_DT_S;
         if let Some(rec) = &mut recording {
             let [vx, vy, wz] = command;
-            rec.start_segment(t0_s, format!("command vx {vx} m/s, vy {vy} m/s, wz {wz} rad/s (robot 0)"));
+            rec.start_segment(
+                t0_s,
+                format!("command vx {vx} m/s, vy {vy} m/s, wz {wz} rad/s (robot 0)"),
+            );
         }
         let segment = recording.as_mut().map(|rec| (rec, t0_s));
-        results.push(track_command(&mut env, &mut ppo, command, args.steps, &mut estimator, segment)?);
+        results.push(track_command(
+            &mut env,
+            &mut ppo,
+            command,
+            args.steps,
+            &mut estimator,
+            segment,
+        )?);
     }
     let m = results.len() as f64;
-    let push = if cfg.env.kind == EnvKind::Sim { Some(push_test(&cfg, &mut ppo, n)?) } else { None };
+    let push = if cfg.env.kind == EnvKind::Sim {
+        Some(push_test(&cfg, &mut ppo, n)?)
+    } else {
+        None
+    };
     let on_tiles = cfg.resolved_sim().terrain.tiles;
     let terrain = if cfg.env.kind == EnvKind::Sim && (args.terrain || on_tiles) {
         Some(terrain_walk(&cfg, &mut ppo, args.terrain_robots)?)
@@ -517,16 +576,22 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     }
     println!(
         "mean: lin err {:.3} m/s, fall rate {:.2}, tripod score {:.2}, estimator error {:.3} m/s",
-        report.mean_lin_vel_error_m_s, report.mean_fall_rate, report.mean_tripod_score, report.estimator_error_m_s
+        report.mean_lin_vel_error_m_s,
+        report.mean_fall_rate,
+        report.mean_tripod_score,
+        report.estimator_error_m_s
     );
-    let out = args
-        .out
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("runs/eval").join(format!("{}.json", crate::checkpoint::display_name(&checkpoint))));
+    let out = args.out.clone().unwrap_or_else(|| {
+        PathBuf::from("runs/eval").join(format!(
+            "{}.json",
+            crate::checkpoint::display_name(&checkpoint)
+        ))
+    });
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    std::fs::write(&out, serde_json::to_string_pretty(&report)?).with_context(|| format!("writing {}", out.display()))?;
+    std::fs::write(&out, serde_json::to_string_pretty(&report)?)
+        .with_context(|| format!("writing {}", out.display()))?;
     eprintln!("report: {}", out.display());
     if let (Some(rec), PlayEnv::Sim(sim)) = (&recording, &env) {
         let path = out.with_extension("rrd");

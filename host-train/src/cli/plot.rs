@@ -19,7 +19,11 @@ pub struct PlotArgs {
 
 /// Runs the subcommand.
 pub fn run(args: PlotArgs) -> anyhow::Result<()> {
-    let csv = if args.metrics.is_dir() { args.metrics.join("metrics.csv") } else { args.metrics.clone() };
+    let csv = if args.metrics.is_dir() {
+        args.metrics.join("metrics.csv")
+    } else {
+        args.metrics.clone()
+    };
     let mut log = MetricsLog::read_csv(&csv).map_err(|e| anyhow!(e))?;
     if let Some(last) = args.until {
         log.truncate_after(last as f64);
@@ -27,9 +31,18 @@ pub fn run(args: PlotArgs) -> anyhow::Result<()> {
     if log.rows().is_empty() {
         anyhow::bail!("{}: no rows to plot", csv.display());
     }
-    let out = args.out.unwrap_or_else(|| csv.parent().unwrap_or(std::path::Path::new(".")).join("plots"));
+    let out = args.out.unwrap_or_else(|| {
+        csv.parent()
+            .unwrap_or(std::path::Path::new("."))
+            .join("plots")
+    });
     std::fs::create_dir_all(&out)?;
     let files = log.plot(&out).map_err(|e| anyhow!(e))?;
-    println!("{} rows -> {} plots in {}", log.rows().len(), files.len(), out.display());
+    println!(
+        "{} rows -> {} plots in {}",
+        log.rows().len(),
+        files.len(),
+        out.display()
+    );
     Ok(())
 }

@@ -8,8 +8,8 @@
 //! more samples than a 2-core machine gives to find stepping at all.
 
 use crate::algo::adam::Adam;
-use crate::algo::storage::gather_rows;
 use crate::algo::ppo::Ppo;
+use crate::algo::storage::gather_rows;
 use crate::checkpoint;
 use crate::config::{EnvKind, TrainConfig};
 use crate::nn::actor_critic::CriticInput;
@@ -17,7 +17,8 @@ use anyhow::Context;
 use candle_core::{Device, Tensor};
 use clap::Args;
 use hexapod_core::obs::{
-    ACTOR_COMMAND, ACTOR_OBS_DIM, COMMAND_SCALE, HEIGHT_SCAN_DIM, HISTORY_DIM, PRIVILEGED_DIM, PRIV_LIN_VEL,
+    ACTOR_COMMAND, ACTOR_OBS_DIM, COMMAND_SCALE, HEIGHT_SCAN_DIM, HISTORY_DIM, PRIVILEGED_DIM,
+    PRIV_LIN_VEL,
 };
 use hexapod_core::robot::{NUM_JOINTS, Q0_RAD};
 use hexapod_core::timing::{ACTION_SCALE_RAD, POLICY_DT_S};
@@ -105,7 +106,10 @@ fn collect(cfg: &TrainConfig, args: &PretrainArgs) -> anyhow::Result<Dataset> {
     let mut t_s = vec![0.0f32; n];
     let mut obs = env.reset();
     let mut data = Dataset::default();
-    let (mut rewards, mut dones) = (Vec::with_capacity(n * args.steps), Vec::with_capacity(n * args.steps));
+    let (mut rewards, mut dones) = (
+        Vec::with_capacity(n * args.steps),
+        Vec::with_capacity(n * args.steps),
+    );
     let mut expert_vx = (0.0f64, 0.0f64, 0usize);
     for _ in 0..args.steps {
         let mut exec = Vec::with_capacity(n * NUM_JOINTS);
@@ -118,7 +122,8 @@ fn collect(cfg: &TrainConfig, args: &PretrainArgs) -> anyhow::Result<Dataset> {
                 a + args.exec_noise * z
             }));
             if command[1].abs() < 0.05 && command[2].abs() < 0.1 && command[0] > 0.2 {
-                let v = obs.privileged[i * PRIVILEGED_DIM + PRIV_LIN_VEL.start] / hexapod_core::obs::LIN_VEL_SCALE;
+                let v = obs.privileged[i * PRIVILEGED_DIM + PRIV_LIN_VEL.start]
+                    / hexapod_core::obs::LIN_VEL_SCALE;
                 expert_vx.0 += v as f64;
                 expert_vx.1 += command[0] as f64;
                 expert_vx.2 += 1;
@@ -130,7 +135,11 @@ fn collect(cfg: &TrainConfig, args: &PretrainArgs) -> anyhow::Result<Dataset> {
         data.heights.extend_from_slice(&obs.heights);
         let res = env.step(&exec);
         for i in 0..n {
-            t_s[i] = if res.dones[i] { 0.0 } else { t_s[i] + POLICY_DT_S };
+            t_s[i] = if res.dones[i] {
+                0.0
+            } else {
+                t_s[i] + POLICY_DT_S
+            };
         }
         rewards.extend_from_slice(&res.rewards);
         dones.extend(res.dones.iter().zip(&res.time_outs).map(|(&d, &t)| d && !t));
@@ -168,7 +177,13 @@ fn rows(data: &[f32], dim: usize, idx: &[usize], device: &Device) -> candle_core
 }
 
 /// One epoch of regression; returns (action MSE, estimator MSE, value MSE) means.
-fn epoch(ppo: &Ppo, opt: &mut Adam, data: &Dataset, batch: usize, rng: &mut ChaCha8Rng) -> anyhow::Result<[f64; 3]> {
+fn epoch(
+    ppo: &Ppo,
+    opt: &mut Adam,
+    data: &Dataset,
+    batch: usize,
+    rng: &mut ChaCha8Rng,
+) -> anyhow::Result<[f64; 3]> {
     let dev = ppo.device.clone();
     let mut order: Vec<usize> = (0..data.len()).collect();
     order.shuffle(rng);
@@ -216,12 +231,23 @@ fn epoch(ppo: &Ppo, opt: &mut Adam, data: &Dataset, batch: usize, rng: &mut ChaC
 pub fn run(args: PretrainArgs) -> anyhow::Result<()> {
     let cfg = TrainConfig::load(&args.config)?;
     cfg.validate()?;
-    anyhow::ensure!(cfg.env.kind == EnvKind::Sim, "{}: pretraining needs env.kind = \"sim\"", args.config.display());
-    anyhow::ensure!(args.batch > 0 && args.steps >= 2, "--batch and --steps must be positive");
+    anyhow::ensure!(
+        cfg.env.kind == EnvKind::Sim,
+        "{}: pretraining needs env.kind = \"sim\"",
+        args.config.display()
+    );
+    anyhow::ensure!(
+        args.batch > 0 && args.steps >= 2,
+        "--batch and --steps must be positive"
+    );
     let mut ppo = Ppo::new(&cfg)?;
-    eprintln!("collecting {} steps x {} robots with the scripted tripod gait", args.steps, cfg.env.num_envs);
+    eprintln!(
+        "collecting {} steps x {} robots with the scripted tripod gait",
+        args.steps, cfg.env.num_envs
+    );
     let data = collect(&cfg, &args)?;
-    ppo.ac.update_normalizers(&data.actor, &data.history, &data.privileged, &data.heights)?;
+    ppo.ac
+        .update_normalizers(&data.actor, &data.history, &data.privileged, &data.heights)?;
     let mut opt = Adam::new(&ppo.params, args.learning_rate)?;
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.runner.seed ^ 0xbc);
     let label_variance = variance(&data.labels);
@@ -237,8 +263,12 @@ pub fn run(args: PretrainArgs) -> anyhow::Result<()> {
             v
         );
     }
-    checkpoint::save(&args.out, &ppo, 0).with_context(|| format!("writing {}", args.out.display()))?;
-    eprintln!("checkpoint: {} (resume it with `hexapod train --resume`)", args.out.display());
+    checkpoint::save(&args.out, &ppo, 0)
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    eprintln!(
+        "checkpoint: {} (resume it with `hexapod train --resume`)",
+        args.out.display()
+    );
     Ok(())
 }
 
@@ -254,10 +284,15 @@ mod tests {
 
     #[test]
     fn command_round_trips_through_the_actor_observation() {
-        let mut obs = host_sim::vec_env::Observations { actor: vec![0.0; ACTOR_OBS_DIM], ..Default::default() };
+        let mut obs = host_sim::vec_env::Observations {
+            actor: vec![0.0; ACTOR_OBS_DIM],
+            ..Default::default()
+        };
         obs.set_command(0, [0.3, -0.1, 0.4]);
         let c = command_of(&obs.actor);
-        assert!((c[0] - 0.3).abs() < 1e-6 && (c[1] + 0.1).abs() < 1e-6 && (c[2] - 0.4).abs() < 1e-6);
+        assert!(
+            (c[0] - 0.3).abs() < 1e-6 && (c[1] + 0.1).abs() < 1e-6 && (c[2] - 0.4).abs() < 1e-6
+        );
     }
 
     #[test]
@@ -267,7 +302,11 @@ mod tests {
         let stance_b = (0..6).filter(|leg| hexapod_core::robot::TRIPOD_A_MASK & (1 << leg) == 0);
         for leg in stance_b {
             for k in 0..3 {
-                assert!(a[3 * leg + k].abs() < 1e-4, "leg {leg}: {:?}", &a[3 * leg..3 * leg + 3]);
+                assert!(
+                    a[3 * leg + k].abs() < 1e-4,
+                    "leg {leg}: {:?}",
+                    &a[3 * leg..3 * leg + 3]
+                );
             }
         }
         assert!(a.iter().any(|x| x.abs() > 0.05), "the swing tripod lifts");

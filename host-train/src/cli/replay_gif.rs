@@ -4,7 +4,9 @@
 //! moves under the robot.
 
 use hexapod_core::kinematics::foot_position_base;
-use hexapod_core::robot::{Leg, COXA_LENGTH_M, HIP_POS_BASE_M, MOUNT_YAW_RAD, NUM_JOINTS, THIGH_LENGTH_M, TRUNK_SIZE_M};
+use hexapod_core::robot::{
+    Leg, COXA_LENGTH_M, HIP_POS_BASE_M, MOUNT_YAW_RAD, NUM_JOINTS, THIGH_LENGTH_M, TRUNK_SIZE_M,
+};
 use hexapod_core::timing::POLICY_DT_S;
 use host_sim::frames::rotate;
 use plotters::prelude::*;
@@ -36,18 +38,32 @@ pub fn leg_points_base(leg: Leg, q: [f32; 3]) -> [[f32; 3]; 4] {
     let hip = HIP_POS_BASE_M[i];
     let yaw = MOUNT_YAW_RAD[i] + q[0];
     let (c, s) = (yaw.cos(), yaw.sin());
-    let coxa = [hip[0] + COXA_LENGTH_M[i] * c, hip[1] + COXA_LENGTH_M[i] * s, hip[2]];
+    let coxa = [
+        hip[0] + COXA_LENGTH_M[i] * c,
+        hip[1] + COXA_LENGTH_M[i] * s,
+        hip[2],
+    ];
     let r = THIGH_LENGTH_M * q[1].cos();
-    let knee = [coxa[0] + r * c, coxa[1] + r * s, coxa[2] - THIGH_LENGTH_M * q[1].sin()];
+    let knee = [
+        coxa[0] + r * c,
+        coxa[1] + r * s,
+        coxa[2] - THIGH_LENGTH_M * q[1].sin(),
+    ];
     [hip, coxa, knee, foot_position_base(leg, q)]
 }
 
 /// Renders the frames (every other one: 25 per second, real-time playback) into an animated
 /// GIF. `ground_height_m(x, y)` is the terrain height under a world point.
-pub fn render_replay(path: &Path, frames: &[ReplayFrame], ground_height_m: &dyn Fn(f32, f32) -> f32) -> Result<(), String> {
+pub fn render_replay(
+    path: &Path,
+    frames: &[ReplayFrame],
+    ground_height_m: &dyn Fn(f32, f32) -> f32,
+) -> Result<(), String> {
     let stride = 2usize;
     let delay_ms = (1000.0 * POLICY_DT_S * stride as f32) as u32;
-    let root = BitMapBackend::gif(path, (640, 480), delay_ms).map_err(|e| e.to_string())?.into_drawing_area();
+    let root = BitMapBackend::gif(path, (640, 480), delay_ms)
+        .map_err(|e| e.to_string())?
+        .into_drawing_area();
     for (k, f) in frames.iter().enumerate().step_by(stride) {
         let [px, py, pz] = f.base_pos_world_m;
         // Plot axes: x = world x, y = up, z = world y.
@@ -60,7 +76,10 @@ pub fn render_replay(path: &Path, frames: &[ReplayFrame], ground_height_m: &dyn 
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let half = VIEW_HALF_M as f64;
         let mut chart = ChartBuilder::on(&root)
-            .caption(format!("t = {:.2} s", k as f32 * POLICY_DT_S), (host_sim::plot::FONT, 18))
+            .caption(
+                format!("t = {:.2} s", k as f32 * POLICY_DT_S),
+                (host_sim::plot::FONT, 18),
+            )
             .margin(8)
             .build_cartesian_3d(
                 px as f64 - half..px as f64 + half,
@@ -76,20 +95,39 @@ pub fn render_replay(path: &Path, frames: &[ReplayFrame], ground_height_m: &dyn 
         });
         for line in ground_grid(px, py, ground_height_m) {
             chart
-                .draw_series(LineSeries::new(line.into_iter().map(to_plot), RGBColor(110, 110, 110)))
+                .draw_series(LineSeries::new(
+                    line.into_iter().map(to_plot),
+                    RGBColor(110, 110, 110),
+                ))
                 .map_err(|e| e.to_string())?;
         }
         let (hx, hy) = (TRUNK_SIZE_M[0] / 2.0, TRUNK_SIZE_M[1] / 2.0);
-        let trunk = [[hx, hy, 0.0], [hx, -hy, 0.0], [-hx, -hy, 0.0], [-hx, hy, 0.0], [hx, hy, 0.0]];
+        let trunk = [
+            [hx, hy, 0.0],
+            [hx, -hy, 0.0],
+            [-hx, -hy, 0.0],
+            [-hx, hy, 0.0],
+            [hx, hy, 0.0],
+        ];
         chart
-            .draw_series(LineSeries::new(trunk.iter().map(|&p| to_world(p)), BLACK.stroke_width(3)))
+            .draw_series(LineSeries::new(
+                trunk.iter().map(|&p| to_world(p)),
+                BLACK.stroke_width(3),
+            ))
             .map_err(|e| e.to_string())?;
         for leg in Leg::ALL {
             let j = 3 * leg.index();
             let pts = leg_points_base(leg, [f.q_rad[j], f.q_rad[j + 1], f.q_rad[j + 2]]);
-            let color = if leg.tripod() == hexapod_core::robot::Tripod::A { RED } else { BLUE };
+            let color = if leg.tripod() == hexapod_core::robot::Tripod::A {
+                RED
+            } else {
+                BLUE
+            };
             chart
-                .draw_series(LineSeries::new(pts.iter().map(|&p| to_world(p)), color.stroke_width(3)))
+                .draw_series(LineSeries::new(
+                    pts.iter().map(|&p| to_world(p)),
+                    color.stroke_width(3),
+                ))
                 .map_err(|e| e.to_string())?;
         }
         root.present().map_err(|e| e.to_string())?;
@@ -110,11 +148,23 @@ fn ground_grid(cx: f32, cy: f32, ground_height_m: &dyn Fn(f32, f32) -> f32) -> V
     let samples = (2.0 * VIEW_HALF_M / GRID_SAMPLE_M).round() as usize + 1;
     let along = |c: f32, i: usize| c - VIEW_HALF_M + i as f32 * GRID_SAMPLE_M;
     let mut lines: Vec<Vec<[f32; 3]>> = line_indices(cx)
-        .map(|x| (0..samples).map(|i| { let y = along(cy, i); [x, y, ground_height_m(x, y)] }).collect())
+        .map(|x| {
+            (0..samples)
+                .map(|i| {
+                    let y = along(cy, i);
+                    [x, y, ground_height_m(x, y)]
+                })
+                .collect()
+        })
         .collect();
-    lines.extend(
-        line_indices(cy).map(|y| (0..samples).map(|i| { let x = along(cx, i); [x, y, ground_height_m(x, y)] }).collect()),
-    );
+    lines.extend(line_indices(cy).map(|y| {
+        (0..samples)
+            .map(|i| {
+                let x = along(cx, i);
+                [x, y, ground_height_m(x, y)]
+            })
+            .collect()
+    }));
     lines
 }
 
@@ -130,8 +180,14 @@ mod tests {
             let q = [Q0_RAD[j], Q0_RAD[j + 1], Q0_RAD[j + 2]];
             let pts = leg_points_base(leg, q);
             // The shank segment (knee -> foot) has the shank's length.
-            let d: f32 = (0..3).map(|k| (pts[3][k] - pts[2][k]).powi(2)).sum::<f32>().sqrt();
-            assert!((d - hexapod_core::robot::SHANK_LENGTH_M).abs() < 1e-5, "{d}");
+            let d: f32 = (0..3)
+                .map(|k| (pts[3][k] - pts[2][k]).powi(2))
+                .sum::<f32>()
+                .sqrt();
+            assert!(
+                (d - hexapod_core::robot::SHANK_LENGTH_M).abs() < 1e-5,
+                "{d}"
+            );
         }
     }
 

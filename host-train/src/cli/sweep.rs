@@ -63,7 +63,12 @@ enum SweepCommand {
 
 fn print_status(sweep: &spec::Sweep) -> usize {
     let mut unfinished = 0;
-    println!("sweep `{}`: {} jobs in {}", sweep.spec.name, sweep.jobs.len(), sweep.dir.display());
+    println!(
+        "sweep `{}`: {} jobs in {}",
+        sweep.spec.name,
+        sweep.jobs.len(),
+        sweep.dir.display()
+    );
     for job in &sweep.jobs {
         let st = task::state(job);
         unfinished += (st != task::JobState::Done) as usize;
@@ -75,22 +80,40 @@ fn print_status(sweep: &spec::Sweep) -> usize {
 /// Runs `hexapod sweep`.
 pub fn run(args: SweepArgs) -> anyhow::Result<()> {
     match args.command {
-        SweepCommand::Run { spec, backend, no_submit, wait } => {
+        SweepCommand::Run {
+            spec,
+            backend,
+            no_submit,
+            wait,
+        } => {
             let sweep = spec::load(&spec)?;
             if backend == Backend::Local && (no_submit || wait) {
                 bail!("--no-submit and --wait are for --backend slurm");
             }
-            let todo: Vec<&spec::Job> = sweep.jobs.iter().filter(|j| task::state(j) != task::JobState::Done).collect();
+            let todo: Vec<&spec::Job> = sweep
+                .jobs
+                .iter()
+                .filter(|j| task::state(j) != task::JobState::Done)
+                .collect();
             if todo.is_empty() {
                 print_status(&sweep);
-                println!("every job is done: `hexapod sweep report {}`", spec.display());
+                println!(
+                    "every job is done: `hexapod sweep report {}`",
+                    spec.display()
+                );
                 return Ok(());
             }
             let exe = task::hexapod_exe()?;
             match backend {
                 Backend::Local => {
                     for (k, job) in todo.iter().enumerate() {
-                        eprintln!("== job {} of {} left: {} ({})", k + 1, todo.len(), job.name(), task::state(job));
+                        eprintln!(
+                            "== job {} of {} left: {} ({})",
+                            k + 1,
+                            todo.len(),
+                            job.name(),
+                            task::state(job)
+                        );
                         task::run(&sweep, job, &exe)?;
                     }
                     print_status(&sweep);
@@ -103,15 +126,26 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
                         let spec_file = sweep.path.canonicalize()?;
                         std::fs::create_dir_all(&sweep.dir)?;
                         let script = sweep.dir.join("sweep.sbatch");
-                        std::fs::write(&script, slurm::batch_script(&sweep, &indices, &exe, &spec_file, &workdir))?;
-                        println!("wrote {} ({} tasks); submit with `sbatch {}`", script.display(), indices.len(), script.display());
+                        std::fs::write(
+                            &script,
+                            slurm::batch_script(&sweep, &indices, &exe, &spec_file, &workdir),
+                        )?;
+                        println!(
+                            "wrote {} ({} tasks); submit with `sbatch {}`",
+                            script.display(),
+                            indices.len(),
+                            script.display()
+                        );
                         return Ok(());
                     }
                     let id = slurm::submit(&sweep, &indices, &exe, wait)?;
                     if wait {
                         let unfinished = print_status(&sweep);
                         if unfinished > 0 {
-                            bail!("array job {id}: {unfinished} jobs did not finish; logs in {}", sweep.dir.join("logs").display());
+                            bail!(
+                                "array job {id}: {unfinished} jobs did not finish; logs in {}",
+                                sweep.dir.join("logs").display()
+                            );
                         }
                         println!("report: `hexapod sweep report {}`", spec.display());
                     } else {
@@ -129,7 +163,11 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
         SweepCommand::Task { spec, index } => {
             let sweep = spec::load(&spec)?;
             let Some(job) = sweep.jobs.get(index) else {
-                bail!("sweep `{}` has jobs 0 to {}; no job {index}", sweep.spec.name, sweep.jobs.len() - 1);
+                bail!(
+                    "sweep `{}` has jobs 0 to {}; no job {index}",
+                    sweep.spec.name,
+                    sweep.jobs.len() - 1
+                );
             };
             task::run(&sweep, job, &task::hexapod_exe()?)
         }

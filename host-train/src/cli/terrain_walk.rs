@@ -53,18 +53,27 @@ pub struct TerrainWalkResult {
 
 /// Terrain rows tested: the [`TERRAIN_TEST_DIFFICULTIES`] of `rows`, without repeats.
 pub fn test_levels(rows: usize) -> Vec<usize> {
-    let mut levels: Vec<usize> =
-        TERRAIN_TEST_DIFFICULTIES.iter().map(|d| (d * (rows.max(1) - 1) as f32).round() as usize).collect();
+    let mut levels: Vec<usize> = TERRAIN_TEST_DIFFICULTIES
+        .iter()
+        .map(|d| (d * (rows.max(1) - 1) as f32).round() as usize)
+        .collect();
     levels.dedup();
     levels
 }
 
 /// Runs the terrain test with `per_kind` robots on each tile kind. A checkpoint trained on
 /// flat ground is tested on the default tile grid.
-pub fn terrain_walk(cfg: &TrainConfig, ppo: &mut Ppo, per_kind: usize) -> anyhow::Result<TerrainWalkResult> {
+pub fn terrain_walk(
+    cfg: &TrainConfig,
+    ppo: &mut Ppo,
+    per_kind: usize,
+) -> anyhow::Result<TerrainWalkResult> {
     let mut sim = cfg.resolved_sim();
     if !sim.terrain.tiles {
-        sim.terrain = TerrainConfig { tiles: true, ..TerrainConfig::default() };
+        sim.terrain = TerrainConfig {
+            tiles: true,
+            ..TerrainConfig::default()
+        };
     }
     let kinds = sim.terrain.columns.clone();
     let n = kinds.len() * per_kind;
@@ -117,7 +126,8 @@ pub fn terrain_walk(cfg: &TrainConfig, ppo: &mut Ppo, per_kind: usize) -> anyhow
     Ok(TerrainWalkResult {
         command: TERRAIN_TEST_COMMAND,
         duration_s: TERRAIN_TEST_DURATION_S,
-        commanded_distance_m: TERRAIN_TEST_COMMAND[0].hypot(TERRAIN_TEST_COMMAND[1]) * TERRAIN_TEST_DURATION_S,
+        commanded_distance_m: TERRAIN_TEST_COMMAND[0].hypot(TERRAIN_TEST_COMMAND[1])
+            * TERRAIN_TEST_DURATION_S,
         tiles,
         fall_rate,
     })
@@ -129,9 +139,15 @@ pub fn print(t: &TerrainWalkResult) {
         "terrain test: ({:.1},{:.1},{:.1}) for {:.0} s ({:.1} m commanded), random headings",
         t.command[0], t.command[1], t.command[2], t.duration_s, t.commanded_distance_m
     );
-    println!("{:>20} {:>6} {:>32} {:>10} {:>12}", "tile", "level", "feature", "fall rate", "distance m");
+    println!(
+        "{:>20} {:>6} {:>32} {:>10} {:>12}",
+        "tile", "level", "feature", "fall rate", "distance m"
+    );
     for r in &t.tiles {
-        println!("{:>20} {:>6} {:>32} {:>10.2} {:>12.2}", r.kind, r.level, r.feature, r.fall_rate, r.mean_distance_m);
+        println!(
+            "{:>20} {:>6} {:>32} {:>10.2} {:>12.2}",
+            r.kind, r.level, r.feature, r.fall_rate, r.mean_distance_m
+        );
     }
     println!("terrain test fall rate {:.2}", t.fall_rate);
 }

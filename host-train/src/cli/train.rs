@@ -59,7 +59,11 @@ pub fn resolve_config(args: &TrainArgs) -> anyhow::Result<TrainConfig> {
         cfg.env.num_envs = n;
     }
     if let Some(kind) = &args.env {
-        cfg.env.kind = if kind == "fake" { EnvKind::Fake } else { EnvKind::Sim };
+        cfg.env.kind = if kind == "fake" {
+            EnvKind::Fake
+        } else {
+            EnvKind::Sim
+        };
     }
     cfg.validate()?;
     Ok(cfg)
@@ -72,7 +76,11 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         std::env::set_var("RAYON_NUM_THREADS", cfg.runner.num_threads.to_string());
     }
     let run_dir = args.run_dir.clone().unwrap_or_else(|| {
-        PathBuf::from("runs").join(args.run_name.as_deref().unwrap_or(&cfg.runner.experiment_name))
+        PathBuf::from("runs").join(
+            args.run_name
+                .as_deref()
+                .unwrap_or(&cfg.runner.experiment_name),
+        )
     });
     let env = make_env(&cfg)?;
     let priors = load_prior_source(&cfg)?;
@@ -80,11 +88,23 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     if let Some(ckpt) = &args.resume {
         let ckpt = &crate::checkpoint::resolve_dir(ckpt)?;
         let saved = crate::checkpoint::load_config(ckpt)?;
-        if saved.policy != cfg.policy || saved.amp.discriminator_hidden != cfg.amp.discriminator_hidden {
-            anyhow::bail!("{}: the checkpoint's network shapes differ from {}", ckpt.display(), args.config.display());
+        if saved.policy != cfg.policy
+            || saved.amp.discriminator_hidden != cfg.amp.discriminator_hidden
+        {
+            anyhow::bail!(
+                "{}: the checkpoint's network shapes differ from {}",
+                ckpt.display(),
+                args.config.display()
+            );
         }
-        runner.resume(ckpt).with_context(|| format!("resuming from {}", ckpt.display()))?;
-        eprintln!("resumed from {} at iteration {}", ckpt.display(), runner.iteration);
+        runner
+            .resume(ckpt)
+            .with_context(|| format!("resuming from {}", ckpt.display()))?;
+        eprintln!(
+            "resumed from {} at iteration {}",
+            ckpt.display(),
+            runner.iteration
+        );
     }
     std::fs::write(run_dir.join("config.toml"), cfg.to_toml_string())
         .with_context(|| format!("writing {}", run_dir.display()))?;
@@ -119,6 +139,10 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         );
         return Ok(());
     }
-    eprintln!("done: checkpoint {}, metrics {}", last.display(), run_dir.join("metrics.csv").display());
+    eprintln!(
+        "done: checkpoint {}, metrics {}",
+        last.display(),
+        run_dir.join("metrics.csv").display()
+    );
     Ok(())
 }

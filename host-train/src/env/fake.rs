@@ -11,9 +11,8 @@
 use hexapod_core::amp::{amp_state, AMP_STATE_DIM};
 use hexapod_core::nets::ACTOR_OUT;
 use hexapod_core::obs::{
-    actor_obs, proprio_noise_scale, proprio_obs, PrivilegedState, ProprioHistory, ACTOR_OBS_DIM, HEIGHT_SCAN_DIM,
-    HISTORY_DIM, PRIVILEGED_DIM,
-    PROPRIO_DIM,
+    actor_obs, proprio_noise_scale, proprio_obs, PrivilegedState, ProprioHistory, ACTOR_OBS_DIM,
+    HEIGHT_SCAN_DIM, HISTORY_DIM, PRIVILEGED_DIM, PROPRIO_DIM,
 };
 use hexapod_core::robot::{NUM_JOINTS, Q0_RAD};
 use hexapod_core::timing::{ACTION_SCALE_RAD, POLICY_DT_S};
@@ -51,14 +50,31 @@ pub struct PointMassEnv {
 
 impl PointMassEnv {
     /// `num_envs` robots, episodes of `episode_steps` policy steps, reward terms on or off.
-    pub fn new(num_envs: usize, episode_steps: usize, task_reward: bool, penalties: bool, seed: u64) -> Self {
+    pub fn new(
+        num_envs: usize,
+        episode_steps: usize,
+        task_reward: bool,
+        penalties: bool,
+        seed: u64,
+    ) -> Self {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let robots = (0..num_envs).map(|_| Self::fresh(&mut rng)).collect();
-        Self { robots, episode_steps, task_reward, penalties, rng, fixed_commands: vec![None; num_envs] }
+        Self {
+            robots,
+            episode_steps,
+            task_reward,
+            penalties,
+            rng,
+            fixed_commands: vec![None; num_envs],
+        }
     }
 
     fn fresh(rng: &mut ChaCha8Rng) -> Robot {
-        let command = [rng.gen_range(-1.0..1.0), rng.gen_range(-0.5..0.5), rng.gen_range(-1.0..1.0)];
+        let command = [
+            rng.gen_range(-1.0..1.0),
+            rng.gen_range(-0.5..0.5),
+            rng.gen_range(-1.0..1.0),
+        ];
         Robot {
             q_off: [0.0; NUM_JOINTS],
             qdot: [0.0; NUM_JOINTS],
@@ -81,7 +97,13 @@ impl PointMassEnv {
     }
 
     fn amp(r: &Robot) -> [f32; AMP_STATE_DIM] {
-        amp_state(&Self::q(r), &r.qdot, [r.vel[0], r.vel[1], 0.0], [0.0, 0.0, r.vel[2]], [0.0, 0.0, 1.0])
+        amp_state(
+            &Self::q(r),
+            &r.qdot,
+            [r.vel[0], r.vel[1], 0.0],
+            [0.0, 0.0, r.vel[2]],
+            [0.0, 0.0, 1.0],
+        )
     }
 
     fn observe_proprio(r: &mut Robot, rng: &mut ChaCha8Rng) -> [f32; PROPRIO_DIM] {
@@ -102,7 +124,8 @@ impl PointMassEnv {
             amp: Vec::with_capacity(n * AMP_STATE_DIM),
         };
         for r in &self.robots {
-            obs.actor.extend_from_slice(&actor_obs(r.command, &r.prev_action, r.history.newest()));
+            obs.actor
+                .extend_from_slice(&actor_obs(r.command, &r.prev_action, r.history.newest()));
             obs.history.extend_from_slice(&r.history.flatten());
             let p = PrivilegedState {
                 lin_vel_base_m_s: [r.vel[0], r.vel[1], 0.0],
@@ -157,7 +180,11 @@ impl VecEnv for PointMassEnv {
             let r = &mut self.robots[i];
             let mut rate = 0.0f32;
             for j in 0..NUM_JOINTS {
-                let aj = if invalid { 0.0 } else { a[j].clamp(-100.0, 100.0) };
+                let aj = if invalid {
+                    0.0
+                } else {
+                    a[j].clamp(-100.0, 100.0)
+                };
                 let target = ACTION_SCALE_RAD * aj;
                 let new_off = r.q_off[j] + 0.5 * (target - r.q_off[j]);
                 r.qdot[j] = (new_off - r.q_off[j]) / POLICY_DT_S;
@@ -171,9 +198,12 @@ impl VecEnv for PointMassEnv {
             }
             let lin_err = (r.vel[0] - r.command[0]).powi(2) + (r.vel[1] - r.command[1]).powi(2);
             // Per-step terms are scaled by the policy period, as the simulator's are.
-            let task = POLICY_DT_S * ((-lin_err / 0.15).exp() + 0.5 * (-(r.vel[2] - r.command[2]).powi(2) / 0.15).exp());
+            let task = POLICY_DT_S
+                * ((-lin_err / 0.15).exp()
+                    + 0.5 * (-(r.vel[2] - r.command[2]).powi(2) / 0.15).exp());
             let penalty = -0.01 * rate * POLICY_DT_S;
-            res.rewards[i] = if self.task_reward { task } else { 0.0 } + if self.penalties { penalty } else { 0.0 };
+            res.rewards[i] = if self.task_reward { task } else { 0.0 }
+                + if self.penalties { penalty } else { 0.0 };
             r.sum_task += task;
             r.sum_penalty += penalty;
             r.steps += 1;
@@ -265,9 +295,16 @@ mod probe {
         let normal = Normal::new(0.0f32, 0.5).unwrap();
         let mut terminations = 0;
         for _ in 0..100 {
-            let a: Vec<f32> = (0..8 * ACTOR_OUT).map(|_| normal.sample(&mut rng)).collect();
+            let a: Vec<f32> = (0..8 * ACTOR_OUT)
+                .map(|_| normal.sample(&mut rng))
+                .collect();
             let r = env.step(&a);
-            terminations += r.dones.iter().zip(&r.time_outs).filter(|(d, t)| **d && !**t).count();
+            terminations += r
+                .dones
+                .iter()
+                .zip(&r.time_outs)
+                .filter(|(d, t)| **d && !**t)
+                .count();
         }
         assert_eq!(terminations, 0);
     }

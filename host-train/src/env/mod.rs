@@ -24,6 +24,8 @@ pub fn make_env(cfg: &TrainConfig) -> Result<Box<dyn VecEnv>, EnvError> {
             cfg.rewards.penalties,
             cfg.env.seed,
         ))),
-        EnvKind::Sim => Ok(Box::new(host_sim::env::HexapodEnv::new(cfg.resolved_sim())?)),
+        EnvKind::Sim => Ok(Box::new(host_sim::env::HexapodEnv::new(
+            cfg.resolved_sim(),
+        )?)),
     }
 }

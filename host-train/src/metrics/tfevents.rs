@@ -45,7 +45,7 @@ pub fn crc32c(bytes: &[u8]) -> u32 {
 /// TFRecord's masked CRC: rotated right by 15 bits plus a constant.
 pub fn masked_crc32c(bytes: &[u8]) -> u32 {
     let crc = crc32c(bytes);
-    ((crc >> 15) | (crc << 17)).wrapping_add(0xa282_ead8)
+    crc.rotate_right(15).wrapping_add(0xa282_ead8)
 }
 
 /// One TFRecord: length, its masked CRC, the data, its masked CRC.

@@ -75,14 +75,30 @@ pub struct ActorCritic {
 
 impl ActorCritic {
     /// Builds the networks in `params` (trainable) and the normalizers in `stats`.
-    pub fn new(cfg: &PolicyConfig, params: &VarMap, stats: &VarMap, dtype: DType, device: &Device) -> Result<Self> {
+    pub fn new(
+        cfg: &PolicyConfig,
+        params: &VarMap,
+        stats: &VarMap,
+        dtype: DType,
+        device: &Device,
+    ) -> Result<Self> {
         let vb = VarBuilder::from_varmap(params, dtype, device);
         let estimator = if cfg.use_estimator {
-            Some(Mlp::new(HISTORY_DIM, &cfg.estimator_hidden, ESTIMATOR_OUT, vb.pp("estimator"))?)
+            Some(Mlp::new(
+                HISTORY_DIM,
+                &cfg.estimator_hidden,
+                ESTIMATOR_OUT,
+                vb.pp("estimator"),
+            )?)
         } else {
             None
         };
-        let memory = Mlp::new(HISTORY_DIM, &cfg.memory_hidden, cfg.memory_latent, vb.pp("memory"))?;
+        let memory = Mlp::new(
+            HISTORY_DIM,
+            &cfg.memory_hidden,
+            cfg.memory_latent,
+            vb.pp("memory"),
+        )?;
         let actor_in = Self::actor_input_dim(cfg);
         let actor = Mlp::new(actor_in, &cfg.actor_hidden, ACTOR_OUT, vb.pp("actor"))?;
         let log_std = vb.pp("actor").get_with_hints(
@@ -91,9 +107,23 @@ impl ActorCritic {
             Init::Const((cfg.init_noise_std as f64).ln()),
         )?;
         let (privileged_encoder, terrain_encoder, critic_in) = if cfg.privileged_critic {
-            let gp = Mlp::new(PRIVILEGED_DIM, &cfg.privileged_encoder_hidden, cfg.privileged_latent, vb.pp("privileged_encoder"))?;
-            let ge = Mlp::new(HEIGHT_SCAN_DIM, &cfg.terrain_encoder_hidden, cfg.terrain_latent, vb.pp("terrain_encoder"))?;
-            (Some(gp), Some(ge), ACTOR_OBS_DIM + cfg.privileged_latent + cfg.terrain_latent)
+            let gp = Mlp::new(
+                PRIVILEGED_DIM,
+                &cfg.privileged_encoder_hidden,
+                cfg.privileged_latent,
+                vb.pp("privileged_encoder"),
+            )?;
+            let ge = Mlp::new(
+                HEIGHT_SCAN_DIM,
+                &cfg.terrain_encoder_hidden,
+                cfg.terrain_latent,
+                vb.pp("terrain_encoder"),
+            )?;
+            (
+                Some(gp),
+                Some(ge),
+                ACTOR_OBS_DIM + cfg.privileged_latent + cfg.terrain_latent,
+            )
         } else {
             (None, None, ACTOR_OBS_DIM + HISTORY_DIM)
         };
@@ -126,11 +156,17 @@ impl ActorCritic {
         let (input, estimate) = match &self.estimator {
             Some(est) => {
                 let v_hat = est.forward(&h)?;
-                (Tensor::cat(&[&a, &v_hat.detach(), &latent], 1)?, Some(v_hat))
+                (
+                    Tensor::cat(&[&a, &v_hat.detach(), &latent], 1)?,
+                    Some(v_hat),
+                )
             }
             None => (Tensor::cat(&[&a, &latent], 1)?, None),
         };
-        Ok(PolicyOutput { mean: self.actor.forward(&input)?, estimate })
+        Ok(PolicyOutput {
+            mean: self.actor.forward(&input)?,
+            estimate,
+        })
     }
 
     /// Critic side: values `[B]`.
@@ -161,7 +197,13 @@ impl ActorCritic {
     }
 
     /// Folds a batch of raw observations into the normalizers.
-    pub fn update_normalizers(&mut self, actor_obs: &[f32], history: &[f32], privileged: &[f32], heights: &[f32]) -> Result<()> {
+    pub fn update_normalizers(
+        &mut self,
+        actor_obs: &[f32],
+        history: &[f32],
+        privileged: &[f32],
+        heights: &[f32],
+    ) -> Result<()> {
         self.norm_actor.update(actor_obs)?;
         self.norm_history.update(history)?;
         self.norm_privileged.update(privileged)?;
@@ -203,13 +245,20 @@ mod tests {
         let out = ac.policy(&obs, &hist).unwrap();
         assert_eq!(out.mean.dims(), &[b, 18]);
         assert_eq!(out.estimate.unwrap().dims(), &[b, 3]);
-        assert!(stats.data().lock().unwrap().contains_key("normalizer.history.mean"));
+        assert!(stats
+            .data()
+            .lock()
+            .unwrap()
+            .contains_key("normalizer.history.mean"));
     }
 
     #[test]
     fn log_prob_and_entropy_match_the_gaussian_formula() {
         let (params, stats) = (VarMap::new(), VarMap::new());
-        let cfg = PolicyConfig { init_noise_std: 0.5, ..Default::default() };
+        let cfg = PolicyConfig {
+            init_noise_std: 0.5,
+            ..Default::default()
+        };
         let ac = ActorCritic::new(&cfg, &params, &stats, DType::F32, &Device::Cpu).unwrap();
         let mean = Tensor::zeros((1, 18), DType::F32, &Device::Cpu).unwrap();
         let act = Tensor::ones((1, 18), DType::F32, &Device::Cpu).unwrap();

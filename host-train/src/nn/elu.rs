@@ -16,18 +16,23 @@ const CHUNK: usize = 1 << 15;
 fn slice<'a, T>(data: &'a [T], layout: &Layout, op: &str) -> Result<&'a [T]> {
     match layout.contiguous_offsets() {
         Some((start, end)) => Ok(&data[start..end]),
-        None => Err(candle_core::Error::Msg(format!("{op}: input must be contiguous"))),
+        None => Err(candle_core::Error::Msg(format!(
+            "{op}: input must be contiguous"
+        ))),
     }
 }
 
 /// `f` over `x`, in parallel chunks, each a plain loop the compiler vectorizes.
 fn map1<T: Copy + Send + Sync>(x: &[T], f: impl Fn(T) -> T + Sync) -> Vec<T> {
     let mut out: Vec<T> = Vec::with_capacity(x.len());
-    out.spare_capacity_mut()[..x.len()].par_chunks_mut(CHUNK).zip(x.par_chunks(CHUNK)).for_each(|(o, c)| {
-        for (o, &v) in o.iter_mut().zip(c) {
-            o.write(f(v));
-        }
-    });
+    out.spare_capacity_mut()[..x.len()]
+        .par_chunks_mut(CHUNK)
+        .zip(x.par_chunks(CHUNK))
+        .for_each(|(o, c)| {
+            for (o, &v) in o.iter_mut().zip(c) {
+                o.write(f(v));
+            }
+        });
     // SAFETY: the loop above wrote every one of the first `x.len()` elements.
     unsafe { out.set_len(x.len()) };
     out
@@ -68,7 +73,9 @@ pub fn expm1_nonpositive_f32(x: f32) -> f32 {
         * (1.0
             + r * (1.0 / 2.0
                 + r * (1.0 / 6.0
-                    + r * (1.0 / 24.0 + r * (1.0 / 120.0 + r * (1.0 / 720.0 + r * (1.0 / 5040.0 + r * (1.0 / 40320.0))))))));
+                    + r * (1.0 / 24.0
+                        + r * (1.0 / 120.0
+                            + r * (1.0 / 720.0 + r * (1.0 / 5040.0 + r * (1.0 / 40320.0))))))));
     let two_n = f32::from_bits(((n as i32 + 127) << 23) as u32);
     two_n * p + (two_n - 1.0)
 }
@@ -77,9 +84,18 @@ macro_rules! unary_cpu {
     ($storage:expr, $layout:expr, $name:expr, $f32:expr, $f64:expr) => {{
         let shape = $layout.shape().clone();
         match $storage {
-            CpuStorage::F32(v) => Ok((CpuStorage::F32(map1(slice(v, $layout, $name)?, $f32)), shape)),
-            CpuStorage::F64(v) => Ok((CpuStorage::F64(map1(slice(v, $layout, $name)?, $f64)), shape)),
-            _ => Err(candle_core::Error::Msg(format!("{}: f32 or f64 only", $name))),
+            CpuStorage::F32(v) => Ok((
+                CpuStorage::F32(map1(slice(v, $layout, $name)?, $f32)),
+                shape,
+            )),
+            CpuStorage::F64(v) => Ok((
+                CpuStorage::F64(map1(slice(v, $layout, $name)?, $f64)),
+                shape,
+            )),
+            _ => Err(candle_core::Error::Msg(format!(
+                "{}: f32 or f64 only",
+                $name
+            ))),
         }
     }};
 }
@@ -87,17 +103,25 @@ macro_rules! unary_cpu {
 macro_rules! binary_cpu {
     ($s1:expr, $l1:expr, $s2:expr, $l2:expr, $name:expr, $f32:expr, $f64:expr) => {{
         if $l1.shape() != $l2.shape() {
-            return Err(candle_core::Error::Msg(format!("{}: shape mismatch", $name)));
+            return Err(candle_core::Error::Msg(format!(
+                "{}: shape mismatch",
+                $name
+            )));
         }
         let shape = $l1.shape().clone();
         match ($s1, $s2) {
-            (CpuStorage::F32(a), CpuStorage::F32(b)) => {
-                Ok((CpuStorage::F32(map2(slice(a, $l1, $name)?, slice(b, $l2, $name)?, $f32)), shape))
-            }
-            (CpuStorage::F64(a), CpuStorage::F64(b)) => {
-                Ok((CpuStorage::F64(map2(slice(a, $l1, $name)?, slice(b, $l2, $name)?, $f64)), shape))
-            }
-            _ => Err(candle_core::Error::Msg(format!("{}: f32 or f64 only", $name))),
+            (CpuStorage::F32(a), CpuStorage::F32(b)) => Ok((
+                CpuStorage::F32(map2(slice(a, $l1, $name)?, slice(b, $l2, $name)?, $f32)),
+                shape,
+            )),
+            (CpuStorage::F64(a), CpuStorage::F64(b)) => Ok((
+                CpuStorage::F64(map2(slice(a, $l1, $name)?, slice(b, $l2, $name)?, $f64)),
+                shape,
+            )),
+            _ => Err(candle_core::Error::Msg(format!(
+                "{}: f32 or f64 only",
+                $name
+            ))),
         }
     }};
 }
@@ -119,7 +143,11 @@ impl CustomOp1 for Elu {
         )
     }
     fn bwd(&self, _arg: &Tensor, res: &Tensor, grad_res: &Tensor) -> Result<Option<Tensor>> {
-        Ok(Some(grad_res.contiguous()?.apply_op2_no_bwd(&res.contiguous()?, &EluBackward)?))
+        Ok(Some(
+            grad_res
+                .contiguous()?
+                .apply_op2_no_bwd(&res.contiguous()?, &EluBackward)?,
+        ))
     }
 }
 
@@ -130,7 +158,13 @@ impl CustomOp2 for EluBackward {
     fn name(&self) -> &'static str {
         "fused-elu-backward"
     }
-    fn cpu_fwd(&self, s1: &CpuStorage, l1: &Layout, s2: &CpuStorage, l2: &Layout) -> Result<(CpuStorage, Shape)> {
+    fn cpu_fwd(
+        &self,
+        s1: &CpuStorage,
+        l1: &Layout,
+        s2: &CpuStorage,
+        l2: &Layout,
+    ) -> Result<(CpuStorage, Shape)> {
         binary_cpu!(
             s1,
             l1,
@@ -155,12 +189,19 @@ impl CustomOp1 for EluDerivative {
             storage,
             layout,
             "elu-derivative",
-            |z: f32| if z > 0.0 { 1.0 } else { expm1_nonpositive_f32(z) + 1.0 },
+            |z: f32| if z > 0.0 {
+                1.0
+            } else {
+                expm1_nonpositive_f32(z) + 1.0
+            },
             |z: f64| if z > 0.0 { 1.0 } else { z.exp() }
         )
     }
     fn bwd(&self, arg: &Tensor, _res: &Tensor, grad_res: &Tensor) -> Result<Option<Tensor>> {
-        Ok(Some(grad_res.contiguous()?.apply_op2_no_bwd(&arg.contiguous()?, &EluDerivativeBackward)?))
+        Ok(Some(grad_res.contiguous()?.apply_op2_no_bwd(
+            &arg.contiguous()?,
+            &EluDerivativeBackward,
+        )?))
     }
 }
 
@@ -171,14 +212,24 @@ impl CustomOp2 for EluDerivativeBackward {
     fn name(&self) -> &'static str {
         "elu-derivative-backward"
     }
-    fn cpu_fwd(&self, s1: &CpuStorage, l1: &Layout, s2: &CpuStorage, l2: &Layout) -> Result<(CpuStorage, Shape)> {
+    fn cpu_fwd(
+        &self,
+        s1: &CpuStorage,
+        l1: &Layout,
+        s2: &CpuStorage,
+        l2: &Layout,
+    ) -> Result<(CpuStorage, Shape)> {
         binary_cpu!(
             s1,
             l1,
             s2,
             l2,
             "elu-derivative-backward",
-            |g: f32, z: f32| if z > 0.0 { 0.0 } else { g * (expm1_nonpositive_f32(z) + 1.0) },
+            |g: f32, z: f32| if z > 0.0 {
+                0.0
+            } else {
+                g * (expm1_nonpositive_f32(z) + 1.0)
+            },
             |g: f64, z: f64| if z > 0.0 { 0.0 } else { g * z.exp() }
         )
     }
@@ -219,25 +270,74 @@ mod tests {
 
     #[test]
     fn matches_candle_elu_and_its_gradients() {
-        let data: Vec<f64> = (0..200).map(|i| (i as f64 - 100.0) * 0.037 + 0.011).collect(); // no kink at 0
+        let data: Vec<f64> = (0..200)
+            .map(|i| (i as f64 - 100.0) * 0.037 + 0.011)
+            .collect(); // no kink at 0
         let x = Var::from_vec(data, (10, 20), &Device::Cpu).unwrap();
         let ours = elu(&x).unwrap();
         let reference = x.elu(1.0).unwrap();
-        let diff = (&ours - &reference).unwrap().abs().unwrap().max_all().unwrap().to_scalar::<f64>().unwrap();
+        let diff = (&ours - &reference)
+            .unwrap()
+            .abs()
+            .unwrap()
+            .max_all()
+            .unwrap()
+            .to_scalar::<f64>()
+            .unwrap();
         assert!(diff < 1e-12);
-        let w = Tensor::from_vec((0..200).map(|i| (i % 7) as f64 - 3.0).collect::<Vec<_>>(), (10, 20), &Device::Cpu).unwrap();
+        let w = Tensor::from_vec(
+            (0..200).map(|i| (i % 7) as f64 - 3.0).collect::<Vec<_>>(),
+            (10, 20),
+            &Device::Cpu,
+        )
+        .unwrap();
         let g1 = ours.mul(&w).unwrap().sum_all().unwrap().backward().unwrap();
-        let g2 = reference.mul(&w).unwrap().sum_all().unwrap().backward().unwrap();
-        let d = (g1.get(&x).unwrap() - g2.get(&x).unwrap()).unwrap().abs().unwrap().max_all().unwrap();
+        let g2 = reference
+            .mul(&w)
+            .unwrap()
+            .sum_all()
+            .unwrap()
+            .backward()
+            .unwrap();
+        let d = (g1.get(&x).unwrap() - g2.get(&x).unwrap())
+            .unwrap()
+            .abs()
+            .unwrap()
+            .max_all()
+            .unwrap();
         assert!(d.to_scalar::<f64>().unwrap() < 1e-12);
         // elu' and its derivative against candle's exp(min(z, 0)).
         let d_ours = elu_derivative(&x).unwrap();
         let d_ref = x.minimum(0.0).unwrap().exp().unwrap();
-        let diff = (&d_ours - &d_ref).unwrap().abs().unwrap().max_all().unwrap().to_scalar::<f64>().unwrap();
+        let diff = (&d_ours - &d_ref)
+            .unwrap()
+            .abs()
+            .unwrap()
+            .max_all()
+            .unwrap()
+            .to_scalar::<f64>()
+            .unwrap();
         assert!(diff < 1e-12);
-        let g1 = d_ours.mul(&w).unwrap().sum_all().unwrap().backward().unwrap();
-        let g2 = d_ref.mul(&w).unwrap().sum_all().unwrap().backward().unwrap();
-        let d = (g1.get(&x).unwrap() - g2.get(&x).unwrap()).unwrap().abs().unwrap().max_all().unwrap();
+        let g1 = d_ours
+            .mul(&w)
+            .unwrap()
+            .sum_all()
+            .unwrap()
+            .backward()
+            .unwrap();
+        let g2 = d_ref
+            .mul(&w)
+            .unwrap()
+            .sum_all()
+            .unwrap()
+            .backward()
+            .unwrap();
+        let d = (g1.get(&x).unwrap() - g2.get(&x).unwrap())
+            .unwrap()
+            .abs()
+            .unwrap()
+            .max_all()
+            .unwrap();
         assert!(d.to_scalar::<f64>().unwrap() < 1e-12);
     }
 }

@@ -10,7 +10,10 @@ use candle_nn::{Linear, Module, VarBuilder};
 /// the previous-action feedback.)
 pub fn torch_linear(input: usize, output: usize, vb: VarBuilder) -> Result<Linear> {
     let bound = 1.0 / (input as f64).sqrt();
-    let init = candle_nn::Init::Uniform { lo: -bound, up: bound };
+    let init = candle_nn::Init::Uniform {
+        lo: -bound,
+        up: bound,
+    };
     let w = vb.get_with_hints((output, input), "weight", init)?;
     let b = vb.get_with_hints(output, "bias", init)?;
     Ok(Linear::new(w, Some(b)))
@@ -87,10 +90,17 @@ impl Mlp {
     /// so a gradient penalty built on it backpropagates exactly (no double backward needed).
     pub fn input_gradient(&self, preactivations: &[Tensor]) -> Result<Tensor> {
         let n = self.layers.len();
-        assert_eq!(preactivations.len(), n - 1, "one pre-activation per hidden layer");
+        assert_eq!(
+            preactivations.len(),
+            n - 1,
+            "one pre-activation per hidden layer"
+        );
         assert_eq!(self.output_dim(), 1, "input_gradient needs a scalar output");
         if n == 1 {
-            return self.layers[0].weight().broadcast_as((preactivations.len().max(1), self.input_dim()))?.contiguous();
+            return self.layers[0]
+                .weight()
+                .broadcast_as((preactivations.len().max(1), self.input_dim()))?
+                .contiguous();
         }
         // dy/dz_{n-2} (*) W_{n-2} = elu'(z_{n-2}) @ (diag(w_{n-1}) W_{n-2}): folding the last
         // weight row into the previous matrix saves a batch-sized product and its backward.
@@ -129,7 +139,9 @@ mod tests {
         let map = VarMap::new();
         let vb = VarBuilder::from_varmap(&map, DType::F64, &Device::Cpu);
         let mlp = Mlp::new(5, &[7, 6], 1, vb).unwrap();
-        let x0: Vec<f64> = (0..10).map(|i| ((i * 37 % 11) as f64 - 5.0) * 0.3).collect();
+        let x0: Vec<f64> = (0..10)
+            .map(|i| ((i * 37 % 11) as f64 - 5.0) * 0.3)
+            .collect();
         let x = Tensor::from_vec(x0.clone(), (2, 5), &Device::Cpu).unwrap();
         let (_, pre) = mlp.forward_with_preactivations(&x).unwrap();
         let g = mlp.input_gradient(&pre).unwrap().to_vec2::<f64>().unwrap();
@@ -143,7 +155,11 @@ mod tests {
                     mlp.forward(&t).unwrap().to_vec2::<f64>().unwrap()[b][0]
                 };
                 let fd = (eval(eps) - eval(-eps)) / (2.0 * eps);
-                assert!((fd - g[b][i]).abs() < 1e-6, "b {b} i {i}: fd {fd} explicit {}", g[b][i]);
+                assert!(
+                    (fd - g[b][i]).abs() < 1e-6,
+                    "b {b} i {i}: fd {fd} explicit {}",
+                    g[b][i]
+                );
             }
         }
     }

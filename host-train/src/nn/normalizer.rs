@@ -32,9 +32,21 @@ impl EmpiricalNormalizer {
     /// Registers `normalizer.<name>.*` in `map` with identity statistics.
     pub fn new(map: &VarMap, name: &str, dim: usize, device: &Device) -> Result<Self> {
         let prefix = format!("normalizer.{name}");
-        let mean_var = register(map, &format!("{prefix}.mean"), Tensor::zeros(dim, DType::F32, device)?)?;
-        let std_var = register(map, &format!("{prefix}.std"), Tensor::ones(dim, DType::F32, device)?)?;
-        let count_var = register(map, &format!("{prefix}.count"), Tensor::zeros(1, DType::F32, device)?)?;
+        let mean_var = register(
+            map,
+            &format!("{prefix}.mean"),
+            Tensor::zeros(dim, DType::F32, device)?,
+        )?;
+        let std_var = register(
+            map,
+            &format!("{prefix}.std"),
+            Tensor::ones(dim, DType::F32, device)?,
+        )?;
+        let count_var = register(
+            map,
+            &format!("{prefix}.count"),
+            Tensor::zeros(1, DType::F32, device)?,
+        )?;
         Ok(Self {
             dim,
             count: 0.0,
@@ -96,10 +108,17 @@ impl EmpiricalNormalizer {
     fn write_vars(&self) -> Result<()> {
         let device = self.mean_var.device().clone();
         let mean: Vec<f32> = self.mean.iter().map(|&m| m as f32).collect();
-        let std: Vec<f32> = self.var.iter().map(|&v| (v.sqrt() + NORMALIZER_EPS) as f32).collect();
-        self.mean_var.set(&Tensor::from_vec(mean, self.dim, &device)?)?;
-        self.std_var.set(&Tensor::from_vec(std, self.dim, &device)?)?;
-        self.count_var.set(&Tensor::from_vec(vec![self.count as f32], 1, &device)?)
+        let std: Vec<f32> = self
+            .var
+            .iter()
+            .map(|&v| (v.sqrt() + NORMALIZER_EPS) as f32)
+            .collect();
+        self.mean_var
+            .set(&Tensor::from_vec(mean, self.dim, &device)?)?;
+        self.std_var
+            .set(&Tensor::from_vec(std, self.dim, &device)?)?;
+        self.count_var
+            .set(&Tensor::from_vec(vec![self.count as f32], 1, &device)?)
     }
 
     /// Re-reads the statistics from the variables (after a checkpoint was loaded into them).
@@ -108,13 +127,17 @@ impl EmpiricalNormalizer {
         let std = self.std_var.as_tensor().to_vec1::<f32>()?;
         self.count = self.count_var.as_tensor().to_vec1::<f32>()?[0] as f64;
         self.mean = mean.iter().map(|&m| m as f64).collect();
-        self.var = std.iter().map(|&s| (s as f64 - NORMALIZER_EPS).max(0.0).powi(2)).collect();
+        self.var = std
+            .iter()
+            .map(|&s| (s as f64 - NORMALIZER_EPS).max(0.0).powi(2))
+            .collect();
         Ok(())
     }
 
     /// Normalizes `[B, dim]`.
     pub fn normalize(&self, x: &Tensor) -> Result<Tensor> {
-        x.broadcast_sub(self.mean_var.as_tensor())?.broadcast_div(self.std_var.as_tensor())
+        x.broadcast_sub(self.mean_var.as_tensor())?
+            .broadcast_div(self.std_var.as_tensor())
     }
 }
 
@@ -126,7 +149,9 @@ mod tests {
     fn merged_statistics_equal_the_batch_statistics() {
         let map = VarMap::new();
         let mut n = EmpiricalNormalizer::new(&map, "x", 2, &Device::Cpu).unwrap();
-        let data: Vec<f32> = (0..20).map(|i| (i as f32 * 0.7).sin() * 3.0 + (i % 2) as f32).collect();
+        let data: Vec<f32> = (0..20)
+            .map(|i| (i as f32 * 0.7).sin() * 3.0 + (i % 2) as f32)
+            .collect();
         n.update(&data[..6]).unwrap();
         n.update(&data[6..]).unwrap();
         for d in 0..2 {
@@ -135,7 +160,12 @@ mod tests {
             let var = col.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / col.len() as f64;
             assert!((n.mean[d] - mean).abs() < 1e-9 && (n.var[d] - var).abs() < 1e-9);
         }
-        let x = Tensor::from_vec(vec![n.mean[0] as f32, n.mean[1] as f32 + 1.0], (1, 2), &Device::Cpu).unwrap();
+        let x = Tensor::from_vec(
+            vec![n.mean[0] as f32, n.mean[1] as f32 + 1.0],
+            (1, 2),
+            &Device::Cpu,
+        )
+        .unwrap();
         let y = n.normalize(&x).unwrap().to_vec2::<f32>().unwrap();
         assert!(y[0][0].abs() < 1e-6);
         assert!((y[0][1] - 1.0 / (n.var[1].sqrt() + NORMALIZER_EPS) as f32).abs() < 1e-5);

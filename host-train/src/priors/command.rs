@@ -77,7 +77,13 @@ pub fn command_name(vx_m_s: f64, vy_m_s: f64, wz_rad_s: f64) -> String {
     let mut parts = Vec::new();
     let mut part = |v: f64, pos: &str, neg: &str| {
         if v.abs() > 1e-9 {
-            parts.push(format!("{}_{}", if v > 0.0 { pos } else { neg }, format!("{:.2}", v.abs()).trim_end_matches('0').trim_end_matches('.')));
+            parts.push(format!(
+                "{}_{}",
+                if v > 0.0 { pos } else { neg },
+                format!("{:.2}", v.abs())
+                    .trim_end_matches('0')
+                    .trim_end_matches('.')
+            ));
         }
     };
     part(vx_m_s, "forward", "backward");
@@ -134,9 +140,13 @@ mod tests {
     #[test]
     fn names_say_the_command() {
         assert_eq!(command_name(0.2, 0.0, 0.0), "forward_0.2");
-        assert_eq!(command_name(-0.4, 0.2, -0.5), "backward_0.4_left_0.2_turn_right_0.5");
+        assert_eq!(
+            command_name(-0.4, 0.2, -0.5),
+            "backward_0.4_left_0.2_turn_right_0.5"
+        );
         assert_eq!(command_name(0.0, 0.0, 0.0), "in_place");
-        let names: std::collections::BTreeSet<String> = default_commands().into_iter().map(|c| c.name).collect();
+        let names: std::collections::BTreeSet<String> =
+            default_commands().into_iter().map(|c| c.name).collect();
         assert_eq!(names.len(), 56, "names are unique");
     }
 

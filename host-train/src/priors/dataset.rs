@@ -88,7 +88,11 @@ impl ReferenceMotion {
         let n = self.states.len();
         let k = (t_steps.floor().max(0.0) as usize).min(n - 1);
         let u = (t_steps - k as f32).clamp(0.0, 1.0);
-        let next = if self.wrap { (k + 1) % n } else { (k + 1).min(n - 1) };
+        let next = if self.wrap {
+            (k + 1) % n
+        } else {
+            (k + 1).min(n - 1)
+        };
         self.states[k].lerp(&self.states[next], u)
     }
 }
@@ -171,7 +175,12 @@ impl MotionDataset {
                 total
             })
             .collect();
-        Self { dir, clips, motions, cumulative_weight }
+        Self {
+            dir,
+            clips,
+            motions,
+            cumulative_weight,
+        }
     }
 
     /// Loads every `*.json` file of `dir` (sorted by name), refusing the first bad one;
@@ -207,12 +216,19 @@ impl MotionDataset {
 
     /// AMP states of motion `i`, one per state.
     pub fn amp_states(&self, i: usize) -> Vec<AmpState> {
-        self.motions[i].states.iter().map(ReferenceState::amp_state).collect()
+        self.motions[i]
+            .states
+            .iter()
+            .map(ReferenceState::amp_state)
+            .collect()
     }
 
     /// Every reference state of every motion (for reference state initialization).
     pub fn reference_states(&self) -> Vec<ReferenceState> {
-        self.motions.iter().flat_map(|m| m.states.iter().copied()).collect()
+        self.motions
+            .iter()
+            .flat_map(|m| m.states.iter().copied())
+            .collect()
     }
 
     /// Total duration of the clips, s.
@@ -223,15 +239,25 @@ impl MotionDataset {
     /// `n` transitions `(s_t, s_t+1)` one policy step apart: a motion drawn with
     /// probability proportional to its weight, then a start time uniformly over the motion
     /// (not only frame instants), both states interpolated (AMP_for_hardware's scheme).
-    pub fn sample_transitions<R: Rng + ?Sized>(&self, rng: &mut R, n: usize) -> Vec<(AmpState, AmpState)> {
+    pub fn sample_transitions<R: Rng + ?Sized>(
+        &self,
+        rng: &mut R,
+        n: usize,
+    ) -> Vec<(AmpState, AmpState)> {
         let total = *self.cumulative_weight.last().unwrap_or(&0.0);
         (0..n)
             .map(|_| {
                 let u = rng.gen_range(0.0..total);
-                let c = self.cumulative_weight.partition_point(|&w| w <= u).min(self.motions.len() - 1);
+                let c = self
+                    .cumulative_weight
+                    .partition_point(|&w| w <= u)
+                    .min(self.motions.len() - 1);
                 let motion = &self.motions[c];
                 let t = rng.gen_range(0.0..motion.start_range_steps().max(f32::MIN_POSITIVE));
-                (motion.state_at(t).amp_state(), motion.state_at(t + 1.0).amp_state())
+                (
+                    motion.state_at(t).amp_state(),
+                    motion.state_at(t + 1.0).amp_state(),
+                )
             })
             .collect()
     }
@@ -241,10 +267,16 @@ impl MotionDataset {
     /// command of a grid over the box (the axes' ends, zero and steps of at most half the
     /// tolerance) must have a clip within [`COVERAGE_TOLERANCE`] on every axis; with
     /// `zero_probability > 0` the zero command must be covered too.
-    pub fn check_command_coverage(&self, ranges: [[f32; 2]; 3], zero_probability: f32) -> Result<(), DatasetError> {
+    pub fn check_command_coverage(
+        &self,
+        ranges: [[f32; 2]; 3],
+        zero_probability: f32,
+    ) -> Result<(), DatasetError> {
         let axis = |[lo, hi]: [f32; 2], tol: f32| -> Vec<f32> {
             let steps = (((hi - lo) / (0.5 * tol)).ceil() as usize).max(1);
-            let mut v: Vec<f32> = (0..=steps).map(|i| lo + (hi - lo) * i as f32 / steps as f32).collect();
+            let mut v: Vec<f32> = (0..=steps)
+                .map(|i| lo + (hi - lo) * i as f32 / steps as f32)
+                .collect();
             if lo < 0.0 && hi > 0.0 {
                 v.push(0.0);
             }
@@ -262,7 +294,11 @@ impl MotionDataset {
             commands.push([0.0; 3]);
         }
         for command in commands {
-            let distance = |c: &[f32; 3]| (0..3).map(|k| (c[k] - command[k]).abs() / COVERAGE_TOLERANCE[k]).fold(0.0f32, f32::max);
+            let distance = |c: &[f32; 3]| {
+                (0..3)
+                    .map(|k| (c[k] - command[k]).abs() / COVERAGE_TOLERANCE[k])
+                    .fold(0.0f32, f32::max)
+            };
             let nearest = self
                 .clips
                 .iter()
@@ -274,7 +310,10 @@ impl MotionDataset {
                     command,
                     nearest: nearest.name.clone(),
                     nearest_command: nearest.command,
-                    tolerance: format!("{} m/s, {} m/s, {} rad/s", COVERAGE_TOLERANCE[0], COVERAGE_TOLERANCE[1], COVERAGE_TOLERANCE[2]),
+                    tolerance: format!(
+                        "{} m/s, {} m/s, {} rad/s",
+                        COVERAGE_TOLERANCE[0], COVERAGE_TOLERANCE[1], COVERAGE_TOLERANCE[2]
+                    ),
                 });
             }
         }
@@ -285,7 +324,10 @@ impl MotionDataset {
 /// The validated clips of `dir`, sorted by file name.
 fn load_clips(dir: &Path) -> Result<Vec<MotionClip>, DatasetError> {
     let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map_err(|source| DatasetError::Dir { dir: dir.to_path_buf(), source })?
+        .map_err(|source| DatasetError::Dir {
+            dir: dir.to_path_buf(),
+            source,
+        })?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|e| e == "json"))
         .collect();
@@ -293,7 +335,10 @@ fn load_clips(dir: &Path) -> Result<Vec<MotionClip>, DatasetError> {
     if paths.is_empty() {
         return Err(DatasetError::Empty(dir.to_path_buf()));
     }
-    Ok(paths.iter().map(|p| MotionClip::load(p)).collect::<Result<Vec<_>, _>>()?)
+    Ok(paths
+        .iter()
+        .map(|p| MotionClip::load(p))
+        .collect::<Result<Vec<_>, _>>()?)
 }
 
 /// Each clip as the simulator performs it: its replay's states after the warm-up.
@@ -302,19 +347,26 @@ fn track_clips(dir: &Path, clips: &[MotionClip]) -> Result<Vec<ReferenceMotion>,
     use host_sim::terrain::{Terrain, TerrainConfig};
     use host_sim::urdf_model::{default_urdf_path, UrdfModel};
     use rayon::prelude::*;
-    let tracking = |message: String| DatasetError::Tracking { dir: dir.to_path_buf(), message };
+    let tracking = |message: String| DatasetError::Tracking {
+        dir: dir.to_path_buf(),
+        message,
+    };
     let model = UrdfModel::load(&default_urdf_path()).map_err(|e| tracking(e.to_string()))?;
     let ground = Terrain::generate(&TerrainConfig::default()).collider();
     let cfg = ReplayConfig::default();
     clips
         .par_iter()
         .map(|clip| {
-            let mut robot = RobotWorld::new(&model, ground.clone(), 1).map_err(|e| tracking(e.to_string()))?;
+            let mut robot =
+                RobotWorld::new(&model, ground.clone(), 1).map_err(|e| tracking(e.to_string()))?;
             let report = replay_clip(&mut robot, clip, &cfg);
             // A fall is refused; a velocity off the clip's command is what the robot does,
             // so the motion is labelled with the velocity it realizes.
             if report.max_tilt_rad > cfg.max_tilt_rad || report.min_height_m < cfg.min_height_m {
-                return Err(DatasetError::Untrackable { file: dir.join(format!("{}.json", clip.name)), summary: report.summary() });
+                return Err(DatasetError::Untrackable {
+                    file: dir.join(format!("{}.json", clip.name)),
+                    summary: report.summary(),
+                });
             }
             Ok(ReferenceMotion {
                 name: clip.name.clone(),

@@ -134,7 +134,11 @@ impl Frame {
     pub fn up_base(&self) -> [f32; 3] {
         let [x, y, z, w] = self.base_quat_xyzw;
         // Third row of the rotation matrix (base -> world): R^T e_z.
-        [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)]
+        [
+            2.0 * (x * z - w * y),
+            2.0 * (y * z + w * x),
+            1.0 - 2.0 * (x * x + y * y),
+        ]
     }
 }
 

@@ -2,8 +2,10 @@
 //! command, over two cycles.
 
 use super::clip::MotionClip;
-use host_sim::plot::{draw_gait, draw_panel, gait_legend_width, legend_width, Gait, Line, Panel, COLORS, FONT};
 use hexapod_core::robot::{JOINT_NAMES, NUM_LEGS};
+use host_sim::plot::{
+    draw_gait, draw_panel, gait_legend_width, legend_width, Gait, Line, Panel, COLORS, FONT,
+};
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -43,31 +45,76 @@ fn draw(clip: &MotionClip, path: &Path) -> Result<(), String> {
     let total = CYCLES * n;
     let frame = |i: usize| &clip.frames[i % n];
     let time_s: Vec<f32> = (0..total).map(|i| i as f32 * dt).collect();
-    let trace = |f: &dyn Fn(usize) -> f32| -> Vec<(f64, f64)> { (0..total).map(|i| (time_s[i] as f64, f(i) as f64)).collect() };
+    let trace = |f: &dyn Fn(usize) -> f32| -> Vec<(f64, f64)> {
+        (0..total)
+            .map(|i| (time_s[i] as f64, f(i) as f64))
+            .collect()
+    };
 
     // Joint trajectories of one leg of each tripod (RF in A, LF in B).
     let joints = [0usize, 1, 2, 9, 10, 11];
     let joint_panel = joints.iter().enumerate().fold(
-        Panel::new("joint positions (RF: tripod A, LF: tripod B)", "time (s)", "joint angle (rad)"),
-        |p, (c, &j)| p.line(Line::nth(c, JOINT_NAMES[j], trace(&|i| frame(i).joint_pos_rad[j]))),
+        Panel::new(
+            "joint positions (RF: tripod A, LF: tripod B)",
+            "time (s)",
+            "joint angle (rad)",
+        ),
+        |p, (c, &j)| {
+            p.line(Line::nth(
+                c,
+                JOINT_NAMES[j],
+                trace(&|i| frame(i).joint_pos_rad[j]),
+            ))
+        },
     );
     // Base velocity (base frame) against the command: m/s and rad/s on separate axes.
-    let flat = |v: f32| -> Vec<(f64, f64)> { vec![(0.0, v as f64), (total as f64 * dt as f64, v as f64)] };
+    let flat =
+        |v: f32| -> Vec<(f64, f64)> { vec![(0.0, v as f64), (total as f64 * dt as f64, v as f64)] };
     let (vx, vy, wz) = (COLORS[0], COLORS[1], COLORS[2]);
-    let lin_panel = Panel::new("linear velocity (base frame): clip, command dashed", "time (s)", "velocity (m/s)")
-        .line(Line::new("vx", trace(&|i| frame(i).lin_vel_base_m_s[0]), vx))
-        .line(Line::new("vx command", flat(clip.command[0]), vx).dashed())
-        .line(Line::new("vy", trace(&|i| frame(i).lin_vel_base_m_s[1]), vy))
-        .line(Line::new("vy command", flat(clip.command[1]), vy).dashed());
-    let yaw_panel = Panel::new("yaw rate (base frame): clip, command dashed", "time (s)", "yaw rate (rad/s)")
-        .line(Line::new("wz", trace(&|i| frame(i).ang_vel_base_rad_s[2]), wz))
-        .line(Line::new("wz command", flat(clip.command[2]), wz).dashed());
+    let lin_panel = Panel::new(
+        "linear velocity (base frame): clip, command dashed",
+        "time (s)",
+        "velocity (m/s)",
+    )
+    .line(Line::new(
+        "vx",
+        trace(&|i| frame(i).lin_vel_base_m_s[0]),
+        vx,
+    ))
+    .line(Line::new("vx command", flat(clip.command[0]), vx).dashed())
+    .line(Line::new(
+        "vy",
+        trace(&|i| frame(i).lin_vel_base_m_s[1]),
+        vy,
+    ))
+    .line(Line::new("vy command", flat(clip.command[1]), vy).dashed());
+    let yaw_panel = Panel::new(
+        "yaw rate (base frame): clip, command dashed",
+        "time (s)",
+        "yaw rate (rad/s)",
+    )
+    .line(Line::new(
+        "wz",
+        trace(&|i| frame(i).ang_vel_base_rad_s[2]),
+        wz,
+    ))
+    .line(Line::new("wz command", flat(clip.command[2]), wz).dashed());
 
-    let legend_px = legend_width(&root, &[&joint_panel, &lin_panel, &yaw_panel]).max(gait_legend_width(&root));
+    let legend_px =
+        legend_width(&root, &[&joint_panel, &lin_panel, &yaw_panel]).max(gait_legend_width(&root));
     let masks: Vec<u8> = (0..total)
-        .map(|i| (0..NUM_LEGS).filter(|&l| frame(i).contacts[l]).fold(0u8, |m, l| m | (1 << l)))
+        .map(|i| {
+            (0..NUM_LEGS)
+                .filter(|&l| frame(i).contacts[l])
+                .fold(0u8, |m, l| m | (1 << l))
+        })
         .collect();
-    let gait = Gait { title: "gait diagram: feet on the ground", time_s: &time_s, stance_masks: &masks, dt_s: dt };
+    let gait = Gait {
+        title: "gait diagram: feet on the ground",
+        time_s: &time_s,
+        stance_masks: &masks,
+        dt_s: dt,
+    };
     draw_gait(&gait_area, &gait, legend_px).map_err(|x| e(&x))?;
     draw_panel(&joint_area, &joint_panel, legend_px).map_err(|x| e(&x))?;
     draw_panel(&lin_area, &lin_panel, legend_px).map_err(|x| e(&x))?;

@@ -10,10 +10,10 @@
 
 use super::clip::MotionClip;
 use hexapod_core::amp::{amp_state, AMP_JOINT_POS, AMP_STATE_DIM};
-use host_sim::reference::ReferenceState;
 use hexapod_core::robot::NUM_JOINTS;
 use hexapod_core::timing::DECIMATION;
 use host_sim::frames::{rotate, rotate_inverse};
+use host_sim::reference::ReferenceState;
 use host_sim::robot::{RobotState, RobotWorld};
 
 /// A simulated robot that can replay joint trajectories.

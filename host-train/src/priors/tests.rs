@@ -4,9 +4,9 @@
 use super::clip::{ClipError, LoopMode, MotionClip};
 use super::command::{default_commands, GaitCommand};
 use super::dataset::{MotionDataset, PriorStates, ReferenceMotion};
-use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_JOINT_POS, AMP_JOINT_VEL};
 use super::generate::{generate_clip, GeneratorConfig};
 use super::sim_tracking::{replay_clip, sim_amp_state, ReplayConfig};
+use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_JOINT_POS, AMP_JOINT_VEL};
 use hexapod_core::robot::{TRIPOD_A, TRIPOD_B};
 use host_sim::frames::rotate;
 use host_sim::robot::{RobotState, RobotWorld};
@@ -174,19 +174,32 @@ fn transitions_follow_the_weights_at_random_phases_one_step_apart() {
     for (s, s_next) in &samples {
         // Clip b turns at 0.5 rad/s throughout, clip a does not turn.
         let turning = s[AMP_BASE_ANG_VEL.start + 2] > 0.25;
-        assert_eq!(turning, s_next[AMP_BASE_ANG_VEL.start + 2] > 0.25, "a pair stays in its clip");
+        assert_eq!(
+            turning,
+            s_next[AMP_BASE_ANG_VEL.start + 2] > 0.25,
+            "a pair stays in its clip"
+        );
         from_a += (!turning) as usize;
         at_frames += frame_states.contains(s) as usize;
         // One policy step apart: the joints move by the trapezoidal integral of their
         // velocities, within the loader's continuity tolerance (0.05 rad).
         for j in AMP_JOINT_POS {
-            let predicted = s[j] + 0.02 * 0.5 * (s[AMP_JOINT_VEL.start + j] + s_next[AMP_JOINT_VEL.start + j]);
-            assert!((predicted - s_next[j]).abs() < 0.05, "joint {j}: {} -> {} (predicted {predicted})", s[j], s_next[j]);
+            let predicted =
+                s[j] + 0.02 * 0.5 * (s[AMP_JOINT_VEL.start + j] + s_next[AMP_JOINT_VEL.start + j]);
+            assert!(
+                (predicted - s_next[j]).abs() < 0.05,
+                "joint {j}: {} -> {} (predicted {predicted})",
+                s[j],
+                s_next[j]
+            );
         }
     }
     let share = from_a as f64 / samples.len() as f64;
     assert!((share - 0.75).abs() < 0.03, "{share}");
-    assert!(at_frames < samples.len() / 20, "{at_frames} samples at frame instants: not interpolated");
+    assert!(
+        at_frames < samples.len() / 20,
+        "{at_frames} samples at frame instants: not interpolated"
+    );
 }
 
 #[test]
@@ -197,7 +210,10 @@ fn interpolation_joins_neighbouring_frames_and_wraps_the_cycle() {
     // At frame instants the state is the frame's, by the function the simulator uses.
     for (k, f) in c.frames.iter().enumerate() {
         let (a, b) = (m.state_at(k as f32).amp_state(), f.amp_state());
-        assert!(a.iter().zip(&b).all(|(x, y)| (x - y).abs() < 1e-6), "frame {k}");
+        assert!(
+            a.iter().zip(&b).all(|(x, y)| (x - y).abs() < 1e-6),
+            "frame {k}"
+        );
     }
     let mid = m.state_at(4.5);
     for j in 0..18 {
@@ -219,38 +235,86 @@ fn tracked_states_are_the_simulator_performing_the_clips() {
     let tracked = MotionDataset::load(&dir, PriorStates::Tracked).unwrap();
     let optimized = MotionDataset::load(&dir, PriorStates::Optimized).unwrap();
     assert_eq!(tracked.motions().len(), optimized.motions().len());
-    let forward = tracked.motions().iter().find(|m| m.name == "forward_0.3").unwrap();
+    let forward = tracked
+        .motions()
+        .iter()
+        .find(|m| m.name == "forward_0.3")
+        .unwrap();
     // Four recorded cycles after the warm-up, not wrapping.
     assert_eq!(forward.states.len(), 4 * 30);
     assert!(!forward.wrap);
     let mean = |m: &ReferenceMotion, f: &dyn Fn(&host_sim::reference::ReferenceState) -> f32| {
         m.states.iter().map(f).sum::<f32>() / m.states.len() as f32
     };
-    let planned = optimized.motions().iter().find(|m| m.name == "forward_0.3").unwrap();
+    let planned = optimized
+        .motions()
+        .iter()
+        .find(|m| m.name == "forward_0.3")
+        .unwrap();
     // The robot under its drives walks lower than the plan, and near the commanded speed.
-    let (h_sim, h_plan) = (mean(forward, &|s| s.base_height_m), mean(planned, &|s| s.base_height_m));
-    assert!(h_sim < h_plan - 0.002, "tracked {h_sim} m, planned {h_plan} m");
+    let (h_sim, h_plan) = (
+        mean(forward, &|s| s.base_height_m),
+        mean(planned, &|s| s.base_height_m),
+    );
+    assert!(
+        h_sim < h_plan - 0.002,
+        "tracked {h_sim} m, planned {h_plan} m"
+    );
     let v = mean(forward, &|s| s.lin_vel_base_m_s[0]);
     assert!((v - 0.3).abs() < 0.05, "{v} m/s");
     // Reference states for initialization: every state of every motion.
-    assert_eq!(tracked.reference_states().len(), tracked.motions().iter().map(|m| m.states.len()).sum::<usize>());
+    assert_eq!(
+        tracked.reference_states().len(),
+        tracked
+            .motions()
+            .iter()
+            .map(|m| m.states.len())
+            .sum::<usize>()
+    );
 }
 
 #[test]
 fn committed_dataset_covers_the_training_commands_and_gaps_are_refused() {
     let data = MotionDataset::load_dir(&committed_dir()).unwrap();
     // The presets' command box, standing included.
-    data.check_command_coverage([[-0.4, 0.5], [-0.2, 0.2], [-0.5, 0.5]], 0.1).unwrap();
+    data.check_command_coverage([[-0.4, 0.5], [-0.2, 0.2], [-0.5, 0.5]], 0.1)
+        .unwrap();
     // Without the clips that step in place or go at 0.5 m/s, those commands are gaps.
-    let no_zero: Vec<MotionClip> = data.clips().iter().filter(|c| c.name != "in_place" && c.name != "forward_0.1").cloned().collect();
+    let no_zero: Vec<MotionClip> = data
+        .clips()
+        .iter()
+        .filter(|c| c.name != "in_place" && c.name != "forward_0.1")
+        .cloned()
+        .collect();
     let mut partial = MotionDataset::new(no_zero);
-    let err = partial.check_command_coverage([[0.0, 0.0], [0.0, 0.0], [0.0, 0.0]], 0.1).unwrap_err().to_string();
-    assert!(err.contains("(vx 0.00 m/s, vy 0.00 m/s, wz 0.00 rad/s)"), "{err}");
-    let slow: Vec<MotionClip> = data.clips().iter().filter(|c| c.command[0] <= 0.3).cloned().collect();
+    let err = partial
+        .check_command_coverage([[0.0, 0.0], [0.0, 0.0], [0.0, 0.0]], 0.1)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("(vx 0.00 m/s, vy 0.00 m/s, wz 0.00 rad/s)"),
+        "{err}"
+    );
+    let slow: Vec<MotionClip> = data
+        .clips()
+        .iter()
+        .filter(|c| c.command[0] <= 0.3)
+        .cloned()
+        .collect();
     partial = MotionDataset::new(slow);
-    let err = partial.check_command_coverage([[-0.4, 0.5], [-0.2, 0.2], [-0.5, 0.5]], 0.0).unwrap_err().to_string();
-    assert!(err.contains("no clip within") && err.contains("vx 0.35 m/s") && err.contains("[sim.commands]"), "{err}");
-    partial.check_command_coverage([[-0.4, 0.3], [-0.2, 0.2], [-0.5, 0.5]], 0.0).unwrap();
+    let err = partial
+        .check_command_coverage([[-0.4, 0.5], [-0.2, 0.2], [-0.5, 0.5]], 0.0)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("no clip within")
+            && err.contains("vx 0.35 m/s")
+            && err.contains("[sim.commands]"),
+        "{err}"
+    );
+    partial
+        .check_command_coverage([[-0.4, 0.3], [-0.2, 0.2], [-0.5, 0.5]], 0.0)
+        .unwrap();
 }
 
 #[test]
@@ -352,14 +416,25 @@ fn committed_dataset_is_complete_and_tripod() {
 
 #[test]
 fn committed_dataset_is_what_the_generator_makes() {
-    assert_dataset_is_fresh(&committed_dir(), &GeneratorConfig::default(), "hexapod priors --out assets/priors");
+    assert_dataset_is_fresh(
+        &committed_dir(),
+        &GeneratorConfig::default(),
+        "hexapod priors --out assets/priors",
+    );
 }
 
 #[test]
 fn committed_climbing_dataset_is_what_the_generator_makes() {
-    let cfg = GeneratorConfig { swing_clearance_m: 0.14, ..GeneratorConfig::default() };
+    let cfg = GeneratorConfig {
+        swing_clearance_m: 0.14,
+        ..GeneratorConfig::default()
+    };
     let dir = committed_dir().join("../priors-climb");
-    assert_dataset_is_fresh(&dir, &cfg, "hexapod priors --out assets/priors-climb --swing-clearance-m 0.14");
+    assert_dataset_is_fresh(
+        &dir,
+        &cfg,
+        "hexapod priors --out assets/priors-climb --swing-clearance-m 0.14",
+    );
 }
 
 fn assert_dataset_is_fresh(dir: &std::path::Path, cfg: &GeneratorConfig, regenerate: &str) {

@@ -71,10 +71,20 @@ impl Spread {
     pub fn of(values: Vec<f64>) -> Self {
         let n = values.len() as f64;
         let mean = values.iter().sum::<f64>() / n;
-        let sd = if values.len() > 1 { (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt() } else { 0.0 };
+        let sd = if values.len() > 1 {
+            (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
+        } else {
+            0.0
+        };
         let min = values.iter().copied().fold(f64::INFINITY, f64::min);
         let max = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        Self { mean, sd, min, max, values }
+        Self {
+            mean,
+            sd,
+            min,
+            max,
+            values,
+        }
     }
 }
 
@@ -157,7 +167,12 @@ fn cell(results: &[&FeatureFile]) -> Option<FeatureCell> {
         successes: results.iter().map(|f| f.successes).sum(),
         trials: results.iter().map(|f| f.trials).sum(),
         falls: results.iter().map(|f| f.falls).sum(),
-        success_rate: Spread::of(results.iter().map(|f| f.successes as f64 / f.trials.max(1) as f64).collect()),
+        success_rate: Spread::of(
+            results
+                .iter()
+                .map(|f| f.successes as f64 / f.trials.max(1) as f64)
+                .collect(),
+        ),
         mean_distance_m: Spread::of(results.iter().map(|f| f.mean_distance_m).collect()),
     })
 }
@@ -173,15 +188,28 @@ pub fn gather(sweep: &Sweep, partial: bool) -> anyhow::Result<SweepReport> {
             continue;
         }
         let path = job.suite_dir().join("report.json");
-        let text = std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
-        let file: SuiteFile = serde_json::from_str(&text).map_err(|e| anyhow::anyhow!("{}: not a suite report: {e}", path.display()))?;
-        let Some(c) = file.controllers.into_iter().next().filter(|_| file.complete) else {
+        let text = std::fs::read_to_string(&path)
+            .with_context(|| format!("reading {}", path.display()))?;
+        let file: SuiteFile = serde_json::from_str(&text)
+            .map_err(|e| anyhow::anyhow!("{}: not a suite report: {e}", path.display()))?;
+        let Some(c) = file
+            .controllers
+            .into_iter()
+            .next()
+            .filter(|_| file.complete)
+        else {
             bail!("{}: an incomplete suite report", path.display());
         };
         done.push((job, c));
     }
     if done.is_empty() {
-        bail!("sweep `{}`: no job has finished yet ({} of {}); run `hexapod sweep run {}` first", sweep.spec.name, missing.len(), sweep.jobs.len(), sweep.path.display());
+        bail!(
+            "sweep `{}`: no job has finished yet ({} of {}); run `hexapod sweep run {}` first",
+            sweep.spec.name,
+            missing.len(),
+            sweep.jobs.len(),
+            sweep.path.display()
+        );
     }
     if !missing.is_empty() && !partial {
         bail!(
@@ -193,7 +221,9 @@ pub fn gather(sweep: &Sweep, partial: bool) -> anyhow::Result<SweepReport> {
         );
     }
     let names = sweep.controllers();
-    let of = |name: &str| -> Vec<&(&super::spec::Job, ControllerFile)> { done.iter().filter(|(j, _)| j.controller == name).collect() };
+    let of = |name: &str| -> Vec<&(&super::spec::Job, ControllerFile)> {
+        done.iter().filter(|(j, _)| j.controller == name).collect()
+    };
     let controllers = names
         .iter()
         .map(|n| ControllerSummary {
@@ -206,15 +236,25 @@ pub fn gather(sweep: &Sweep, partial: bool) -> anyhow::Result<SweepReport> {
     let mut push = Vec::new();
     for name in &names {
         let jobs = of(name);
-        let Some(first) = jobs.iter().find_map(|(_, c)| c.push.as_ref()) else { continue };
+        let Some(first) = jobs.iter().find_map(|(_, c)| c.push.as_ref()) else {
+            continue;
+        };
         for rule in ["strict", "current"] {
             for cond in &first.conditions {
                 let mut values = Vec::new();
                 let mut lower_bounds = 0;
                 for (_, c) in &jobs {
-                    let hit = c.push.as_ref().and_then(|p| p.conditions.iter().find(|k| k.axis == cond.axis && k.gait == cond.gait));
+                    let hit = c.push.as_ref().and_then(|p| {
+                        p.conditions
+                            .iter()
+                            .find(|k| k.axis == cond.axis && k.gait == cond.gait)
+                    });
                     if let Some(k) = hit {
-                        let t = if rule == "strict" { &k.strict } else { &k.current };
+                        let t = if rule == "strict" {
+                            &k.strict
+                        } else {
+                            &k.current
+                        };
                         values.push(t.tolerated_m_s);
                         lower_bounds += t.failed_m_s.is_none() as usize;
                     }
@@ -246,8 +286,16 @@ pub fn gather(sweep: &Sweep, partial: bool) -> anyhow::Result<SweepReport> {
             cells: names
                 .iter()
                 .map(|n| {
-                    let results: Vec<&FeatureFile> =
-                        of(n).iter().filter_map(|(_, c)| c.terrain.as_ref()?.features.iter().find(|f| &f.name == feature)).collect();
+                    let results: Vec<&FeatureFile> = of(n)
+                        .iter()
+                        .filter_map(|(_, c)| {
+                            c.terrain
+                                .as_ref()?
+                                .features
+                                .iter()
+                                .find(|f| &f.name == feature)
+                        })
+                        .collect();
                     cell(&results)
                 })
                 .collect(),
@@ -256,11 +304,22 @@ pub fn gather(sweep: &Sweep, partial: bool) -> anyhow::Result<SweepReport> {
     let outdoor_step = names
         .iter()
         .map(|n| {
-            let results: Vec<&FeatureFile> = of(n).iter().filter_map(|(_, c)| c.terrain.as_ref()?.outdoor_step.as_ref()).collect();
+            let results: Vec<&FeatureFile> = of(n)
+                .iter()
+                .filter_map(|(_, c)| c.terrain.as_ref()?.outdoor_step.as_ref())
+                .collect();
             cell(&results)
         })
         .collect();
-    Ok(SweepReport { sweep: sweep.spec.name.clone(), spec_file: sweep.path.display().to_string(), missing, controllers, push, terrain, outdoor_step })
+    Ok(SweepReport {
+        sweep: sweep.spec.name.clone(),
+        spec_file: sweep.path.display().to_string(),
+        missing,
+        controllers,
+        push,
+        terrain,
+        outdoor_step,
+    })
 }
 
 fn spread(s: &Spread, lower_bounds: usize) -> String {
@@ -268,7 +327,10 @@ fn spread(s: &Spread, lower_bounds: usize) -> String {
     if s.values.len() == 1 {
         format!("{ge}{:.2}", s.mean)
     } else {
-        format!("{ge}{:.2} ± {:.2} ({:.2}-{:.2})", s.mean, s.sd, s.min, s.max)
+        format!(
+            "{ge}{:.2} ± {:.2} ({:.2}-{:.2})",
+            s.mean, s.sd, s.min, s.max
+        )
     }
 }
 
@@ -276,9 +338,18 @@ fn cell_text(c: &Option<FeatureCell>) -> String {
     match c {
         None => "-".into(),
         Some(c) if c.success_rate.values.len() > 1 => {
-            format!("{}/{} (± {:.0} %, {:.2} m)", c.successes, c.trials, 100.0 * c.success_rate.sd, c.mean_distance_m.mean)
+            format!(
+                "{}/{} (± {:.0} %, {:.2} m)",
+                c.successes,
+                c.trials,
+                100.0 * c.success_rate.sd,
+                c.mean_distance_m.mean
+            )
         }
-        Some(c) => format!("{}/{} ({:.2} m)", c.successes, c.trials, c.mean_distance_m.mean),
+        Some(c) => format!(
+            "{}/{} ({:.2} m)",
+            c.successes, c.trials, c.mean_distance_m.mean
+        ),
     }
 }
 
@@ -294,23 +365,48 @@ impl SweepReport {
              \">=\" where a seed's push search never found a failing magnitude.\n",
             self.spec_file
         );
-        let _ = writeln!(s, "| controller | seeds | training iterations |\n|---|---|---|");
+        let _ = writeln!(
+            s,
+            "| controller | seeds | training iterations |\n|---|---|---|"
+        );
         for c in &self.controllers {
             let seeds: Vec<String> = c.seeds.iter().map(|x| x.to_string()).collect();
-            let its: Vec<String> = c.iterations.iter().map(|i| i.map(|i| i.to_string()).unwrap_or_else(|| "?".into())).collect();
-            let _ = writeln!(s, "| {} | {} | {} |", c.name, seeds.join(", "), its.join(", "));
+            let its: Vec<String> = c
+                .iterations
+                .iter()
+                .map(|i| i.map(|i| i.to_string()).unwrap_or_else(|| "?".into()))
+                .collect();
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} |",
+                c.name,
+                seeds.join(", "),
+                its.join(", ")
+            );
         }
         if !self.missing.is_empty() {
-            let _ = writeln!(s, "\n**Not finished, left out:** {}.", self.missing.join(", "));
+            let _ = writeln!(
+                s,
+                "\n**Not finished, left out:** {}.",
+                self.missing.join(", ")
+            );
         }
         if !self.push.is_empty() {
             let _ = writeln!(s, "\n## Velocity-disturbance tolerance (Table III: Y axis, walking at 0.3 m/s), m/s\n");
-            let _ = writeln!(s, "| controller | strict rule | current rule |\n|---|---|---|");
+            let _ = writeln!(
+                s,
+                "| controller | strict rule | current rule |\n|---|---|---|"
+            );
             for c in &self.controllers {
                 let row = |rule: &str| {
                     self.push
                         .iter()
-                        .find(|r| r.controller == c.name && r.rule == rule && r.axis == "Y" && r.gait == "walk")
+                        .find(|r| {
+                            r.controller == c.name
+                                && r.rule == rule
+                                && r.axis == "Y"
+                                && r.gait == "walk"
+                        })
                         .map(|r| spread(&r.tolerated_m_s, r.lower_bounds))
                         .unwrap_or_else(|| "-".into())
                 };
@@ -318,7 +414,15 @@ impl SweepReport {
             }
             let _ = writeln!(s, "\n### Every axis, m/s\n\n| controller | rule | axis, gait | tolerated |\n|---|---|---|---|");
             for r in &self.push {
-                let _ = writeln!(s, "| {} | {} | {} {} | {} |", r.controller, r.rule, r.axis, r.gait, spread(&r.tolerated_m_s, r.lower_bounds));
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {} {} | {} |",
+                    r.controller,
+                    r.rule,
+                    r.axis,
+                    r.gait,
+                    spread(&r.tolerated_m_s, r.lower_bounds)
+                );
             }
         }
         if !self.terrain.is_empty() {
@@ -327,7 +431,12 @@ impl SweepReport {
                 s,
                 "\n## Terrain success (Fig. 5): successes / trials over every seed (± per-seed spread of the rate, mean distance)\n"
             );
-            let _ = writeln!(s, "| feature | {} |\n|---|{}", names.join(" | "), "---|".repeat(names.len()));
+            let _ = writeln!(
+                s,
+                "| feature | {} |\n|---|{}",
+                names.join(" | "),
+                "---|".repeat(names.len())
+            );
             for row in &self.terrain {
                 let cells: Vec<String> = row.cells.iter().map(cell_text).collect();
                 let _ = writeln!(s, "| {} | {} |", row.feature, cells.join(" | "));
@@ -342,11 +451,14 @@ impl SweepReport {
 
     /// Writes `report.json` and `report.md` into the sweep's directory.
     pub fn write(&self, sweep: &Sweep) -> anyhow::Result<()> {
-        std::fs::create_dir_all(&sweep.dir).with_context(|| format!("creating {}", sweep.dir.display()))?;
+        std::fs::create_dir_all(&sweep.dir)
+            .with_context(|| format!("creating {}", sweep.dir.display()))?;
         let json = sweep.dir.join("report.json");
-        std::fs::write(&json, serde_json::to_string_pretty(self)?).with_context(|| format!("writing {}", json.display()))?;
+        std::fs::write(&json, serde_json::to_string_pretty(self)?)
+            .with_context(|| format!("writing {}", json.display()))?;
         let md = sweep.dir.join("report.md");
-        std::fs::write(&md, self.markdown()).with_context(|| format!("writing {}", md.display()))?;
+        std::fs::write(&md, self.markdown())
+            .with_context(|| format!("writing {}", md.display()))?;
         Ok(())
     }
 }
@@ -358,7 +470,9 @@ mod tests {
     use std::path::Path;
 
     fn suite_json(y_strict: f64, y_failed: Option<f64>, stairs: usize) -> String {
-        let failed = y_failed.map(|f| f.to_string()).unwrap_or_else(|| "null".into());
+        let failed = y_failed
+            .map(|f| f.to_string())
+            .unwrap_or_else(|| "null".into());
         format!(
             r#"{{"suite": "paper", "complete": true, "controllers": [{{"name": "run", "iteration": 7,
             "push": {{"conditions": [{{"axis": "Y", "gait": "walk", "current": {{"tolerated_m_s": 3.0, "failed_m_s": 3.5}},
@@ -380,7 +494,11 @@ mod tests {
             std::fs::create_dir_all(&ckpt).unwrap();
             std::fs::write(ckpt.join("config.toml"), "").unwrap();
             std::fs::write(ckpt.join("policy.safetensors"), "").unwrap();
-            std::fs::write(ckpt.join("state.json"), format!("{{\"iteration\": {}}}", job.max_iterations)).unwrap();
+            std::fs::write(
+                ckpt.join("state.json"),
+                format!("{{\"iteration\": {}}}", job.max_iterations),
+            )
+            .unwrap();
             std::fs::create_dir_all(job.suite_dir()).unwrap();
             std::fs::write(job.suite_dir().join("report.json"), json).unwrap();
         };
@@ -389,13 +507,22 @@ mod tests {
         write(2, suite_json(0.5, Some(0.6), 1));
 
         let e = format!("{:#}", gather(&sweep, false).unwrap_err());
-        assert!(e.contains("1 of 4 jobs are not finished") && e.contains("concurrent-s2 (pending)") && e.contains("--partial"), "{e}");
+        assert!(
+            e.contains("1 of 4 jobs are not finished")
+                && e.contains("concurrent-s2 (pending)")
+                && e.contains("--partial"),
+            "{e}"
+        );
 
         let r = gather(&sweep, true).unwrap();
         assert_eq!(r.missing, ["concurrent-s2 (pending)"]);
         assert_eq!(r.controllers[0].seeds, [1, 2]);
         assert_eq!(r.controllers[1].seeds, [1]);
-        let strict = r.push.iter().find(|p| p.controller == "baseline" && p.rule == "strict").unwrap();
+        let strict = r
+            .push
+            .iter()
+            .find(|p| p.controller == "baseline" && p.rule == "strict")
+            .unwrap();
         assert_eq!(strict.tolerated_m_s.mean, 1.5);
         assert!((strict.tolerated_m_s.sd - 0.5f64.sqrt()).abs() < 1e-12);
         assert_eq!(strict.lower_bounds, 1);
@@ -403,8 +530,14 @@ mod tests {
         assert_eq!((stairs.successes, stairs.trials, stairs.falls), (15, 20, 2));
         assert_eq!(r.terrain[0].cells[1].as_ref().unwrap().successes, 1);
         let md = r.markdown();
-        assert!(md.contains("| baseline | >= 1.50 ± 0.71 (1.00-2.00) | 3.00 ± 0.00 (3.00-3.00) |"), "{md}");
-        assert!(md.contains("| stairs up 0.13 m | 15/20 (± 21 %, 2.00 m) | 1/10 (2.00 m) |"), "{md}");
+        assert!(
+            md.contains("| baseline | >= 1.50 ± 0.71 (1.00-2.00) | 3.00 ± 0.00 (3.00-3.00) |"),
+            "{md}"
+        );
+        assert!(
+            md.contains("| stairs up 0.13 m | 15/20 (± 21 %, 2.00 m) | 1/10 (2.00 m) |"),
+            "{md}"
+        );
         r.write(&sweep).unwrap();
         assert!(dir.join("report.md").is_file() && dir.join("report.json").is_file());
         std::fs::remove_dir_all(&dir).unwrap();

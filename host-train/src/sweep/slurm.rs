@@ -11,7 +11,13 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// The batch script for the array tasks `indices`, run from `workdir` with `exe`.
-pub fn batch_script(sweep: &Sweep, indices: &[usize], exe: &Path, spec_file: &Path, workdir: &Path) -> String {
+pub fn batch_script(
+    sweep: &Sweep,
+    indices: &[usize],
+    exe: &Path,
+    spec_file: &Path,
+    workdir: &Path,
+) -> String {
     let s = &sweep.spec.slurm;
     let logs = absolute(workdir, &sweep.dir.join("logs"));
     let list: Vec<String> = indices.iter().map(|i| i.to_string()).collect();
@@ -20,7 +26,12 @@ pub fn batch_script(sweep: &Sweep, indices: &[usize], exe: &Path, spec_file: &Pa
         let _ = write!(array, "%{n}");
     }
     let mut b = String::from("#!/bin/bash\n");
-    let _ = writeln!(b, "# The sweep `{}` ({} jobs), written by `hexapod sweep run --backend slurm`.", sweep.spec.name, sweep.jobs.len());
+    let _ = writeln!(
+        b,
+        "# The sweep `{}` ({} jobs), written by `hexapod sweep run --backend slurm`.",
+        sweep.spec.name,
+        sweep.jobs.len()
+    );
     let _ = writeln!(b, "#SBATCH --job-name=hexapod-{}", sweep.spec.name);
     let _ = writeln!(b, "#SBATCH --array={array}");
     let _ = writeln!(b, "#SBATCH --ntasks=1");
@@ -41,8 +52,17 @@ pub fn batch_script(sweep: &Sweep, indices: &[usize], exe: &Path, spec_file: &Pa
     let _ = writeln!(b, "#SBATCH --chdir={}", workdir.display());
     let _ = writeln!(b, "#SBATCH --output={}/%A_%a.log", logs.display());
     let _ = writeln!(b, "set -eu");
-    let _ = writeln!(b, "export RAYON_NUM_THREADS=${{SLURM_CPUS_PER_TASK:-{}}}", s.cpus_per_task);
-    let _ = writeln!(b, "exec {} sweep task {} --index \"$SLURM_ARRAY_TASK_ID\"", quote(exe), quote(spec_file));
+    let _ = writeln!(
+        b,
+        "export RAYON_NUM_THREADS=${{SLURM_CPUS_PER_TASK:-{}}}",
+        s.cpus_per_task
+    );
+    let _ = writeln!(
+        b,
+        "exec {} sweep task {} --index \"$SLURM_ARRAY_TASK_ID\"",
+        quote(exe),
+        quote(spec_file)
+    );
     b
 }
 
@@ -56,7 +76,9 @@ fn absolute(workdir: &Path, p: &Path) -> PathBuf {
 
 fn quote(p: &Path) -> String {
     let s = p.display().to_string();
-    if s.chars().all(|c| c.is_ascii_alphanumeric() || "/._-+".contains(c)) {
+    if s.chars()
+        .all(|c| c.is_ascii_alphanumeric() || "/._-+".contains(c))
+    {
         s
     } else {
         format!("'{}'", s.replace('\'', "'\\''"))
@@ -67,10 +89,18 @@ fn quote(p: &Path) -> String {
 /// (`--wait`: returns when every task has ended). Returns the array job's id.
 pub fn submit(sweep: &Sweep, indices: &[usize], exe: &Path, wait: bool) -> anyhow::Result<String> {
     let workdir = std::env::current_dir().context("the working directory")?;
-    let spec_file = sweep.path.canonicalize().with_context(|| format!("sweep file {}", sweep.path.display()))?;
-    std::fs::create_dir_all(sweep.dir.join("logs")).with_context(|| format!("creating {}", sweep.dir.join("logs").display()))?;
+    let spec_file = sweep
+        .path
+        .canonicalize()
+        .with_context(|| format!("sweep file {}", sweep.path.display()))?;
+    std::fs::create_dir_all(sweep.dir.join("logs"))
+        .with_context(|| format!("creating {}", sweep.dir.join("logs").display()))?;
     let script = sweep.dir.join("sweep.sbatch");
-    std::fs::write(&script, batch_script(sweep, indices, exe, &spec_file, &workdir)).with_context(|| format!("writing {}", script.display()))?;
+    std::fs::write(
+        &script,
+        batch_script(sweep, indices, exe, &spec_file, &workdir),
+    )
+    .with_context(|| format!("writing {}", script.display()))?;
     let mut cmd = Command::new("sbatch");
     cmd.arg("--parsable");
     if wait {
@@ -84,19 +114,37 @@ pub fn submit(sweep: &Sweep, indices: &[usize], exe: &Path, wait: bool) -> anyho
         }
     })?;
     let stdout = String::from_utf8_lossy(&out.stdout).trim().to_string();
-    let id = stdout.lines().next().unwrap_or("").split(';').next().unwrap_or("").to_string();
+    let id = stdout
+        .lines()
+        .next()
+        .unwrap_or("")
+        .split(';')
+        .next()
+        .unwrap_or("")
+        .to_string();
     if !out.status.success() {
         let stderr = String::from_utf8_lossy(&out.stderr);
         if wait && !id.is_empty() {
             // `--wait` exits non-zero when a task failed; the sweep's status tells which.
-            eprintln!("sbatch: array job {id} ended with failed tasks: {}", stderr.trim());
+            eprintln!(
+                "sbatch: array job {id} ended with failed tasks: {}",
+                stderr.trim()
+            );
             return Ok(id);
         }
         bail!("sbatch refused {}: {}", script.display(), stderr.trim());
     }
     let log = sweep.dir.join("slurm-jobs.txt");
     let mut previous = std::fs::read_to_string(&log).unwrap_or_default();
-    let _ = writeln!(previous, "{id} {}", indices.iter().map(|i| i.to_string()).collect::<Vec<_>>().join(","));
+    let _ = writeln!(
+        previous,
+        "{id} {}",
+        indices
+            .iter()
+            .map(|i| i.to_string())
+            .collect::<Vec<_>>()
+            .join(",")
+    );
     std::fs::write(&log, previous).with_context(|| format!("writing {}", log.display()))?;
     Ok(id)
 }
@@ -111,7 +159,13 @@ mod tests {
         let spec = "name = \"cmp\"\npresets = [\"configs/baseline.toml\", \"configs/concurrent.toml\"]\nseeds = [1, 2, 3]\n\
                     [slurm]\npartition = \"cpu\"\ntime = \"12:00:00\"\ncpus_per_task = 8\nmem = \"16G\"\nmax_parallel = 4\nextra = [\"--qos=long\"]\n";
         let sweep = parse(spec, Path::new("cmp.toml")).unwrap();
-        let s = batch_script(&sweep, &[1, 4, 5], Path::new("/opt/hexapod"), Path::new("/home/u/cmp sweep.toml"), Path::new("/home/u/hexapod"));
+        let s = batch_script(
+            &sweep,
+            &[1, 4, 5],
+            Path::new("/opt/hexapod"),
+            Path::new("/home/u/cmp sweep.toml"),
+            Path::new("/home/u/hexapod"),
+        );
         for line in [
             "#SBATCH --array=1,4,5%4",
             "#SBATCH --cpus-per-task=8",

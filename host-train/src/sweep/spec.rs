@@ -67,7 +67,13 @@ pub struct EvalSpec {
 
 impl Default for EvalSpec {
     fn default() -> Self {
-        Self { suite: "paper".into(), protocols: Vec::new(), quick: false, trials: None, seed: 1 }
+        Self {
+            suite: "paper".into(),
+            protocols: Vec::new(),
+            quick: false,
+            trials: None,
+            seed: 1,
+        }
     }
 }
 
@@ -93,7 +99,15 @@ pub struct SlurmSpec {
 
 impl Default for SlurmSpec {
     fn default() -> Self {
-        Self { partition: None, account: None, time: "24:00:00".into(), cpus_per_task: 2, mem: None, max_parallel: None, extra: Vec::new() }
+        Self {
+            partition: None,
+            account: None,
+            time: "24:00:00".into(),
+            cpus_per_task: 2,
+            mem: None,
+            max_parallel: None,
+            extra: Vec::new(),
+        }
     }
 }
 
@@ -179,22 +193,29 @@ impl Sweep {
 }
 
 fn valid_name(s: &str) -> bool {
-    !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_' || c == '.')
+    !s.is_empty()
+        && s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_' || c == '.')
 }
 
 /// Reads and checks a sweep file; every job's config is resolved (preset, its `base` chain,
 /// the overrides, the seed), so errors name the file and the job before anything runs.
 pub fn load(path: &Path) -> anyhow::Result<Sweep> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("sweep file {}", path.display()))?;
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("sweep file {}", path.display()))?;
     parse(&text, path)
 }
 
 /// [`load`] on the file's text.
 pub fn parse(text: &str, path: &Path) -> anyhow::Result<Sweep> {
     let origin = path.display();
-    let spec: SweepSpec = toml::from_str(text).map_err(|e| anyhow::anyhow!("sweep file {origin}: {}", e.message()))?;
+    let spec: SweepSpec = toml::from_str(text)
+        .map_err(|e| anyhow::anyhow!("sweep file {origin}: {}", e.message()))?;
     if !valid_name(&spec.name) {
-        bail!("sweep file {origin}: name `{}` must be letters, digits, '-', '_' or '.'", spec.name);
+        bail!(
+            "sweep file {origin}: name `{}` must be letters, digits, '-', '_' or '.'",
+            spec.name
+        );
     }
     if spec.presets.is_empty() {
         bail!("sweep file {origin}: `presets` is empty");
@@ -204,12 +225,18 @@ pub fn parse(text: &str, path: &Path) -> anyhow::Result<Sweep> {
     }
     let unique_seeds: BTreeSet<u64> = spec.seeds.iter().copied().collect();
     if unique_seeds.len() != spec.seeds.len() {
-        bail!("sweep file {origin}: a seed is listed twice in {:?}", spec.seeds);
+        bail!(
+            "sweep file {origin}: a seed is listed twice in {:?}",
+            spec.seeds
+        );
     }
     let mut variant_names = BTreeSet::new();
     for v in &spec.variants {
         if !valid_name(&v.name) {
-            bail!("sweep file {origin}: variant name `{}` must be letters, digits, '-', '_' or '.'", v.name);
+            bail!(
+                "sweep file {origin}: variant name `{}` must be letters, digits, '-', '_' or '.'",
+                v.name
+            );
         }
         if !variant_names.insert(v.name.clone()) {
             bail!("sweep file {origin}: variant `{}` is listed twice", v.name);
@@ -221,7 +248,11 @@ pub fn parse(text: &str, path: &Path) -> anyhow::Result<Sweep> {
     if spec.slurm.max_parallel == Some(0) {
         bail!("sweep file {origin}: slurm.max_parallel must be at least 1");
     }
-    let dir = PathBuf::from(spec.out_dir.clone().unwrap_or_else(|| format!("runs/sweeps/{}", spec.name)));
+    let dir = PathBuf::from(
+        spec.out_dir
+            .clone()
+            .unwrap_or_else(|| format!("runs/sweeps/{}", spec.name)),
+    );
     let mut jobs = Vec::new();
     let mut controllers = BTreeSet::new();
     for preset in &spec.presets {
@@ -229,8 +260,15 @@ pub fn parse(text: &str, path: &Path) -> anyhow::Result<Sweep> {
         if !file.is_file() {
             bail!("sweep file {origin}: preset `{preset}` not found (relative paths are from the working directory or the workspace root)");
         }
-        let stem = file.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| preset.clone());
-        let variants: Vec<Option<&Variant>> = if spec.variants.is_empty() { vec![None] } else { spec.variants.iter().map(Some).collect() };
+        let stem = file
+            .file_stem()
+            .map(|s| s.to_string_lossy().to_string())
+            .unwrap_or_else(|| preset.clone());
+        let variants: Vec<Option<&Variant>> = if spec.variants.is_empty() {
+            vec![None]
+        } else {
+            spec.variants.iter().map(Some).collect()
+        };
         for variant in variants {
             let controller = match variant {
                 Some(v) => format!("{stem}-{}", v.name),
@@ -245,7 +283,8 @@ pub fn parse(text: &str, path: &Path) -> anyhow::Result<Sweep> {
             }
             for &seed in &spec.seeds {
                 let name = format!("{controller}-s{seed}");
-                let cfg = job_config(&file, &overrides, seed).with_context(|| format!("sweep file {origin}: job {name}"))?;
+                let cfg = job_config(&file, &overrides, seed)
+                    .with_context(|| format!("sweep file {origin}: job {name}"))?;
                 jobs.push(Job {
                     index: jobs.len(),
                     controller: controller.clone(),
@@ -258,9 +297,15 @@ pub fn parse(text: &str, path: &Path) -> anyhow::Result<Sweep> {
             }
         }
     }
-    let sweep = Sweep { path: path.to_path_buf(), spec, dir, jobs };
+    let sweep = Sweep {
+        path: path.to_path_buf(),
+        spec,
+        dir,
+        jobs,
+    };
     if let Some(job) = sweep.jobs.first() {
-        suite::validate(&sweep.suite_options(job)).with_context(|| format!("sweep file {origin}: [eval]"))?;
+        suite::validate(&sweep.suite_options(job))
+            .with_context(|| format!("sweep file {origin}: [eval]"))?;
     }
     Ok(sweep)
 }
@@ -305,31 +350,60 @@ quick = true
         assert_eq!(names[0], "ablation-gsl-base-s1");
         assert_eq!(names[3], "ablation-gsl-style2-s2");
         assert_eq!(names[7], "ablation-gl-style2-s2");
-        assert_eq!(s.controllers(), ["ablation-gsl-base", "ablation-gsl-style2", "ablation-gl-base", "ablation-gl-style2"]);
-        assert_eq!(s.jobs[3].overrides, ["runner.max_iterations=3", "rewards.style_weight=2.0"]);
+        assert_eq!(
+            s.controllers(),
+            [
+                "ablation-gsl-base",
+                "ablation-gsl-style2",
+                "ablation-gl-base",
+                "ablation-gl-style2"
+            ]
+        );
+        assert_eq!(
+            s.jobs[3].overrides,
+            ["runner.max_iterations=3", "rewards.style_weight=2.0"]
+        );
         assert!(s.jobs.iter().all(|j| j.max_iterations == 3));
         assert!(s.jobs.iter().enumerate().all(|(i, j)| j.index == i));
-        assert_eq!(s.jobs[0].dir, Path::new("target/test-sweeps/ablation/ablation-gsl-base-s1"));
+        assert_eq!(
+            s.jobs[0].dir,
+            Path::new("target/test-sweeps/ablation/ablation-gsl-base-s1")
+        );
         let cfg = job_config(&s.jobs[3].preset, &s.jobs[3].overrides, 2).unwrap();
-        assert_eq!((cfg.rewards.style_weight, cfg.env.seed, cfg.runner.seed), (2.0, 2, 2));
+        assert_eq!(
+            (cfg.rewards.style_weight, cfg.env.seed, cfg.runner.seed),
+            (2.0, 2, 2)
+        );
     }
 
     #[test]
     fn bad_specs_are_named() {
         let err = |text: &str| format!("{:#}", parse(text, Path::new("bad.toml")).unwrap_err());
         let e = err(&SPEC.replace("configs/ablation-gl.toml", "configs/no-such.toml"));
-        assert!(e.contains("bad.toml") && e.contains("configs/no-such.toml") && e.contains("not found"), "{e}");
+        assert!(
+            e.contains("bad.toml") && e.contains("configs/no-such.toml") && e.contains("not found"),
+            "{e}"
+        );
         let e = err(&SPEC.replace("rewards.style_weight=2.0", "rewards.stlye_weight=2.0"));
-        assert!(e.contains("job ablation-gsl-style2-s1") && e.contains("stlye_weight"), "{e}");
+        assert!(
+            e.contains("job ablation-gsl-style2-s1") && e.contains("stlye_weight"),
+            "{e}"
+        );
         let e = err(&SPEC.replace("quick = true", "quick = true\ntrails = 3"));
         assert!(e.contains("bad.toml") && e.contains("trails"), "{e}");
         let e = err(&SPEC.replace("protocols = [\"push\"]", "protocols = [\"stairs\"]"));
-        assert!(e.contains("[eval]") && e.contains("unknown protocol `stairs`"), "{e}");
+        assert!(
+            e.contains("[eval]") && e.contains("unknown protocol `stairs`"),
+            "{e}"
+        );
         let e = err(&SPEC.replace("seeds = [1, 2]", "seeds = [1, 1]"));
         assert!(e.contains("seed is listed twice"), "{e}");
         let e = err(&SPEC.replace("name = \"style2\"", "name = \"base\""));
         assert!(e.contains("variant `base` is listed twice"), "{e}");
-        let e = err(&SPEC.replace("presets = [\"configs/ablation-gsl.toml\", \"configs/ablation-gl.toml\"]", "presets = []"));
+        let e = err(&SPEC.replace(
+            "presets = [\"configs/ablation-gsl.toml\", \"configs/ablation-gl.toml\"]",
+            "presets = []",
+        ));
         assert!(e.contains("`presets` is empty"), "{e}");
         let e = err("name = \"a b\"\npresets = [\"configs/smoke.toml\"]");
         assert!(e.contains("name `a b`"), "{e}");

@@ -45,8 +45,13 @@ pub fn trained_iterations(job: &Job) -> Option<usize> {
 /// Whether the job's suite report exists and says it is complete.
 pub fn evaluated(job: &Job) -> bool {
     let path = job.suite_dir().join("report.json");
-    let Ok(text) = std::fs::read_to_string(path) else { return false };
-    serde_json::from_str::<serde_json::Value>(&text).ok().and_then(|v| v.get("complete")?.as_bool()).unwrap_or(false)
+    let Ok(text) = std::fs::read_to_string(path) else {
+        return false;
+    };
+    serde_json::from_str::<serde_json::Value>(&text)
+        .ok()
+        .and_then(|v| v.get("complete")?.as_bool())
+        .unwrap_or(false)
 }
 
 /// Where `job` stands, read off its files.
@@ -127,9 +132,14 @@ fn run_step(exe: &Path, args: &[String], what: &str, job: &Job) -> anyhow::Resul
             cmd.env("RAYON_NUM_THREADS", n);
         }
     }
-    let status = cmd.status().with_context(|| format!("job {}: starting {}", job.name(), exe.display()))?;
+    let status = cmd
+        .status()
+        .with_context(|| format!("job {}: starting {}", job.name(), exe.display()))?;
     if !status.success() {
-        bail!("job {}: {what} failed ({status}); its output is above; run the sweep again to resume", job.name());
+        bail!(
+            "job {}: {what} failed ({status}); its output is above; run the sweep again to resume",
+            job.name()
+        );
     }
     Ok(())
 }
@@ -147,7 +157,11 @@ pub fn run(sweep: &Sweep, job: &Job, exe: &Path) -> anyhow::Result<()> {
     if state(job) != JobState::Done {
         run_step(exe, &suite_args(sweep, job), "the suite", job)?;
     }
-    eprintln!("[{}] done: {}", job.name(), job.suite_dir().join("report.md").display());
+    eprintln!(
+        "[{}] done: {}",
+        job.name(),
+        job.suite_dir().join("report.md").display()
+    );
     Ok(())
 }
 
@@ -169,20 +183,42 @@ mod tests {
         assert_eq!(state(job), JobState::Pending);
         let a = train_args(job);
         assert!(a.windows(2).any(|w| w[0] == "--seed" && w[1] == "3"));
-        assert!(a.windows(2).any(|w| w[0] == "--set" && w[1] == "runner.max_iterations=2"));
+        assert!(a
+            .windows(2)
+            .any(|w| w[0] == "--set" && w[1] == "runner.max_iterations=2"));
         assert!(!a.contains(&"--resume".to_string()));
         let e = suite_args(&sweep, job);
-        assert!(e.windows(2).any(|w| w[0] == "--protocol" && w[1] == "push,sine"));
-        assert!(e.contains(&"--quick".to_string()) && e.windows(2).any(|w| w[0] == "--trials" && w[1] == "1"));
+        assert!(e
+            .windows(2)
+            .any(|w| w[0] == "--protocol" && w[1] == "push,sine"));
+        assert!(
+            e.contains(&"--quick".to_string())
+                && e.windows(2).any(|w| w[0] == "--trials" && w[1] == "1")
+        );
 
         // A checkpoint at iteration 1 of 2: training resumes from the run directory.
         let ckpt = job.run_dir().join("checkpoints/model_000001");
         std::fs::create_dir_all(&ckpt).unwrap();
-        std::fs::copy("../assets/policies/flat-tripod/config.toml", ckpt.join("config.toml")).unwrap();
-        std::fs::copy("../assets/policies/flat-tripod/policy.safetensors", ckpt.join("policy.safetensors")).unwrap();
+        std::fs::copy(
+            "../assets/policies/flat-tripod/config.toml",
+            ckpt.join("config.toml"),
+        )
+        .unwrap();
+        std::fs::copy(
+            "../assets/policies/flat-tripod/policy.safetensors",
+            ckpt.join("policy.safetensors"),
+        )
+        .unwrap();
         std::fs::write(ckpt.join("state.json"), "{\"iteration\": 1}").unwrap();
-        assert_eq!(state(job), JobState::Training(1), "{:?}", load_iteration(&ckpt));
-        assert!(train_args(job).windows(2).any(|w| w[0] == "--resume" && w[1] == job.run_dir().display().to_string()));
+        assert_eq!(
+            state(job),
+            JobState::Training(1),
+            "{:?}",
+            load_iteration(&ckpt)
+        );
+        assert!(train_args(job)
+            .windows(2)
+            .any(|w| w[0] == "--resume" && w[1] == job.run_dir().display().to_string()));
 
         // At its last iteration it is trained; with a complete report it is done.
         let last = job.run_dir().join("checkpoints/model_000002");

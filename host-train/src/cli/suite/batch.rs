@@ -84,7 +84,8 @@ impl Conditions {
 
 /// Seed of trial `k`'s robot: the same dynamics in every test and at every magnitude.
 pub fn trial_seed(seed: u64, k: usize) -> u64 {
-    seed.wrapping_mul(0x2545_F491_4F6C_DD1D).wrapping_add(0x9E37 + k as u64)
+    seed.wrapping_mul(0x2545_F491_4F6C_DD1D)
+        .wrapping_add(0x9E37 + k as u64)
 }
 
 /// Policy steps in `s` seconds.
@@ -129,7 +130,10 @@ pub fn seed_trials(env: &mut HexapodEnv, c: &Conditions) {
 /// Base velocity in the heading frame (x forward, y left, z up; not tilted with the base), m/s.
 pub fn heading_velocity_m_s(s: &RobotState) -> [f32; 3] {
     let yaw = yaw_rad(s.base_quat_xyzw);
-    rotate_inverse(host_sim::frames::quat_from_yaw(yaw), s.base_lin_vel_world_m_s)
+    rotate_inverse(
+        host_sim::frames::quat_from_yaw(yaw),
+        s.base_lin_vel_world_m_s,
+    )
 }
 
 /// Roll and pitch of the base, rad (z-y-x Euler angles).
@@ -163,7 +167,10 @@ mod tests {
 
     #[test]
     fn frames() {
-        let mut s = RobotState { base_quat_xyzw: quat_from_yaw(1.0), ..Default::default() };
+        let mut s = RobotState {
+            base_quat_xyzw: quat_from_yaw(1.0),
+            ..Default::default()
+        };
         s.base_lin_vel_world_m_s = [1.0f32.cos(), 1.0f32.sin(), 0.2];
         let v = heading_velocity_m_s(&s);
         assert!((v[0] - 1.0).abs() < 1e-5 && v[1].abs() < 1e-5 && (v[2] - 0.2).abs() < 1e-6);

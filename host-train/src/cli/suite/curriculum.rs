@@ -67,8 +67,16 @@ pub fn run(checkpoint: &Path, rows: usize) -> anyhow::Result<CurriculumResult> {
     if let Ok(iteration) = load_iteration(checkpoint) {
         log.truncate_after(iteration as f64);
     }
-    let mut keys: Vec<String> =
-        log.rows().iter().flat_map(|r| r.keys().filter(|k| k.starts_with(LEVEL_PREFIX)).cloned().collect::<Vec<_>>()).collect();
+    let mut keys: Vec<String> = log
+        .rows()
+        .iter()
+        .flat_map(|r| {
+            r.keys()
+                .filter(|k| k.starts_with(LEVEL_PREFIX))
+                .cloned()
+                .collect::<Vec<_>>()
+        })
+        .collect();
     keys.sort();
     keys.dedup();
     let kinds: Vec<KindCurve> = keys
@@ -90,8 +98,20 @@ pub fn run(checkpoint: &Path, rows: usize) -> anyhow::Result<CurriculumResult> {
         })
         .filter(|k| !k.points.is_empty())
         .collect();
-    let its: Vec<f64> = log.rows().iter().filter_map(|r| r.get("iteration").copied()).collect();
+    let its: Vec<f64> = log
+        .rows()
+        .iter()
+        .filter_map(|r| r.get("iteration").copied())
+        .collect();
     let iterations = its.first().zip(its.last()).map(|(a, b)| (*a, *b));
-    let note = kinds.is_empty().then(|| "metrics.csv has no per-kind terrain levels (trained on flat ground)".to_string());
-    Ok(CurriculumResult { metrics: Some(path.display().to_string()), note, rows, iterations, kinds })
+    let note = kinds
+        .is_empty()
+        .then(|| "metrics.csv has no per-kind terrain levels (trained on flat ground)".to_string());
+    Ok(CurriculumResult {
+        metrics: Some(path.display().to_string()),
+        note,
+        rows,
+        iterations,
+        kinds,
+    })
 }

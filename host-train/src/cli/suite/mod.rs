@@ -15,9 +15,9 @@ pub mod report;
 pub mod sine;
 pub mod terrain;
 
+use crate::algo::ppo::Ppo;
 use crate::checkpoint::{load_for_inference, load_iteration};
 use crate::config::{EnvKind, TrainConfig};
-use crate::algo::ppo::Ppo;
 use anyhow::{bail, Context};
 use batch::Conditions;
 use report::{ControllerReport, SuiteReport};
@@ -64,7 +64,11 @@ pub fn validate(o: &SuiteOptions) -> anyhow::Result<Vec<&'static str>> {
     }
     for p in &o.protocols {
         if !PROTOCOLS.contains(&p.as_str()) {
-            bail!("unknown protocol `{p}` (the {} suite has: {})", o.suite, PROTOCOLS.join(", "));
+            bail!(
+                "unknown protocol `{p}` (the {} suite has: {})",
+                o.suite,
+                PROTOCOLS.join(", ")
+            );
         }
     }
     if o.trials == Some(0) {
@@ -73,14 +77,25 @@ pub fn validate(o: &SuiteOptions) -> anyhow::Result<Vec<&'static str>> {
     if o.checkpoints.is_empty() {
         bail!("give at least one --checkpoint");
     }
-    Ok(PROTOCOLS.iter().copied().filter(|p| o.protocols.is_empty() || o.protocols.iter().any(|q| q == p)).collect())
+    Ok(PROTOCOLS
+        .iter()
+        .copied()
+        .filter(|p| o.protocols.is_empty() || o.protocols.iter().any(|q| q == p))
+        .collect())
 }
 
 /// A short name for a checkpoint: its directory, with the run's for `<run>/checkpoints/model_N`.
 pub fn controller_name(checkpoint: &Path) -> String {
-    let leaf = checkpoint.file_name().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| checkpoint.display().to_string());
+    let leaf = checkpoint
+        .file_name()
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_else(|| checkpoint.display().to_string());
     if leaf.starts_with("model_") {
-        if let Some(run) = checkpoint.parent().and_then(|p| p.parent()).and_then(|p| p.file_name()) {
+        if let Some(run) = checkpoint
+            .parent()
+            .and_then(|p| p.parent())
+            .and_then(|p| p.file_name())
+        {
             return format!("{}/{leaf}", run.to_string_lossy());
         }
     }
@@ -109,24 +124,43 @@ struct Controller {
 /// Runs the suite and writes the report into `o.out`.
 pub fn run(o: &SuiteOptions) -> anyhow::Result<()> {
     let protocols = validate(o)?;
-    let trials = o.trials.unwrap_or(if o.quick { QUICK_TRIALS } else { TRIALS });
+    let trials = o
+        .trials
+        .unwrap_or(if o.quick { QUICK_TRIALS } else { TRIALS });
     let mut controllers = Vec::new();
     for dir in &o.checkpoints {
         if !dir.is_dir() {
             bail!("checkpoint {}: no such directory", dir.display());
         }
-        let (cfg, ppo) = load_for_inference(dir).with_context(|| format!("checkpoint {}", dir.display()))?;
+        let (cfg, ppo) =
+            load_for_inference(dir).with_context(|| format!("checkpoint {}", dir.display()))?;
         if cfg.env.kind != EnvKind::Sim {
-            bail!("checkpoint {}: trained on the `{:?}` stand-in; the suite needs a simulator policy", dir.display(), cfg.env.kind);
+            bail!(
+                "checkpoint {}: trained on the `{:?}` stand-in; the suite needs a simulator policy",
+                dir.display(),
+                cfg.env.kind
+            );
         }
         let mut name = controller_name(dir);
-        let same = controllers.iter().filter(|c: &&Controller| c.name == name || c.name.starts_with(&format!("{name} #"))).count();
+        let same = controllers
+            .iter()
+            .filter(|c: &&Controller| c.name == name || c.name.starts_with(&format!("{name} #")))
+            .count();
         if same > 0 {
             name = format!("{name} #{}", same + 1);
         }
-        controllers.push(Controller { name, checkpoint: dir.clone(), cfg, ppo });
+        controllers.push(Controller {
+            name,
+            checkpoint: dir.clone(),
+            cfg,
+            ppo,
+        });
     }
-    let (rounds, k) = if o.quick { QUICK_PUSH_SEARCH } else { PUSH_SEARCH };
+    let (rounds, k) = if o.quick {
+        QUICK_PUSH_SEARCH
+    } else {
+        PUSH_SEARCH
+    };
     let mut reports = Vec::new();
     for c in &mut controllers {
         let conditions = Conditions::new(&c.cfg, o.seed, trials, o.quick);
@@ -152,10 +186,17 @@ pub fn run(o: &SuiteOptions) -> anyhow::Result<()> {
             r.push = Some(push::run(&c.cfg, &mut c.ppo, &conditions, rounds, k)?);
             time(&mut r, "push", t);
         }
-        let (with_terrain, with_step) = (protocols.contains(&"terrain"), protocols.contains(&"step"));
+        let (with_terrain, with_step) =
+            (protocols.contains(&"terrain"), protocols.contains(&"step"));
         if with_terrain || with_step {
             let t = Instant::now();
-            r.terrain = Some(terrain::run(&c.cfg, &mut c.ppo, &conditions, with_terrain, with_step)?);
+            r.terrain = Some(terrain::run(
+                &c.cfg,
+                &mut c.ppo,
+                &conditions,
+                with_terrain,
+                with_step,
+            )?);
             let label = match (with_terrain, with_step) {
                 (true, true) => "terrain + step",
                 (true, false) => "terrain",
@@ -169,7 +210,11 @@ pub fn run(o: &SuiteOptions) -> anyhow::Result<()> {
             time(&mut r, "sine", t);
         }
         if protocols.contains(&"curriculum") {
-            let rows = if c.cfg.resolved_sim().terrain.tiles { c.cfg.resolved_sim().terrain.rows } else { 0 };
+            let rows = if c.cfg.resolved_sim().terrain.tiles {
+                c.cfg.resolved_sim().terrain.rows
+            } else {
+                0
+            };
             r.curriculum = Some(curriculum::run(&c.checkpoint, rows)?);
         }
         reports.push(r);
@@ -186,22 +231,36 @@ fn command_line() -> String {
 }
 
 /// Writes the report into a temporary directory beside `o.out`, then moves its files in.
-fn write(o: &SuiteOptions, protocols: &[&str], controllers: Vec<ControllerReport>) -> anyhow::Result<()> {
+fn write(
+    o: &SuiteOptions,
+    protocols: &[&str],
+    controllers: Vec<ControllerReport>,
+) -> anyhow::Result<()> {
     std::fs::create_dir_all(&o.out).with_context(|| format!("creating {}", o.out.display()))?;
     let tmp = o.out.join(format!(".suite-partial-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
-    std::fs::create_dir_all(tmp.join("plots")).with_context(|| format!("creating {}", tmp.display()))?;
+    std::fs::create_dir_all(tmp.join("plots"))
+        .with_context(|| format!("creating {}", tmp.display()))?;
     let result = (|| -> anyhow::Result<SuiteReport> {
-        let plots = plots::draw_all(&tmp.join("plots"), &controllers).map_err(anyhow::Error::msg).context("drawing the plots")?;
+        let plots = plots::draw_all(&tmp.join("plots"), &controllers)
+            .map_err(anyhow::Error::msg)
+            .context("drawing the plots")?;
         let report = SuiteReport {
             suite: o.suite.clone(),
             command: command_line(),
             protocols: protocols.iter().map(|p| p.to_string()).collect(),
             complete: true,
-            plots: plots.iter().filter_map(|p| p.file_name()).map(|f| format!("plots/{}", f.to_string_lossy())).collect(),
+            plots: plots
+                .iter()
+                .filter_map(|p| p.file_name())
+                .map(|f| format!("plots/{}", f.to_string_lossy()))
+                .collect(),
             controllers,
         };
-        std::fs::write(tmp.join("report.json"), serde_json::to_string_pretty(&report)?)?;
+        std::fs::write(
+            tmp.join("report.json"),
+            serde_json::to_string_pretty(&report)?,
+        )?;
         std::fs::write(tmp.join("report.md"), report.markdown())?;
         Ok(report)
     })();
@@ -214,10 +273,12 @@ fn write(o: &SuiteOptions, protocols: &[&str], controllers: Vec<ControllerReport
     };
     std::fs::create_dir_all(o.out.join("plots"))?;
     for p in &report.plots {
-        std::fs::rename(tmp.join(p), o.out.join(p)).with_context(|| format!("moving {p} into {}", o.out.display()))?;
+        std::fs::rename(tmp.join(p), o.out.join(p))
+            .with_context(|| format!("moving {p} into {}", o.out.display()))?;
     }
     for f in ["report.json", "report.md"] {
-        std::fs::rename(tmp.join(f), o.out.join(f)).with_context(|| format!("moving {f} into {}", o.out.display()))?;
+        std::fs::rename(tmp.join(f), o.out.join(f))
+            .with_context(|| format!("moving {f} into {}", o.out.display()))?;
     }
     let _ = std::fs::remove_dir_all(&tmp);
     println!("{}", report.markdown());
@@ -245,11 +306,17 @@ mod tests {
     fn bad_input_is_named() {
         let mut o = opts();
         o.suite = "papr".into();
-        assert!(validate(&o).unwrap_err().to_string().contains("unknown suite `papr`"));
+        assert!(validate(&o)
+            .unwrap_err()
+            .to_string()
+            .contains("unknown suite `papr`"));
         let mut o = opts();
         o.protocols = vec!["push".into(), "stairs".into()];
         let e = validate(&o).unwrap_err().to_string();
-        assert!(e.contains("unknown protocol `stairs`") && e.contains("terrain"), "{e}");
+        assert!(
+            e.contains("unknown protocol `stairs`") && e.contains("terrain"),
+            "{e}"
+        );
         let mut o = opts();
         o.trials = Some(0);
         assert!(validate(&o).unwrap_err().to_string().contains("--trials"));
@@ -264,14 +331,24 @@ mod tests {
         let _ = std::fs::remove_dir_all(&out);
         let mut o = opts();
         o.out = out.clone();
-        o.checkpoints = vec![PathBuf::from("../assets/policies/flat-tripod"), PathBuf::from("no/such/checkpoint")];
+        o.checkpoints = vec![
+            PathBuf::from("../assets/policies/flat-tripod"),
+            PathBuf::from("no/such/checkpoint"),
+        ];
         let e = format!("{:#}", run(&o).unwrap_err());
-        assert!(e.contains("no/such/checkpoint") && e.contains("no such directory"), "{e}");
+        assert!(
+            e.contains("no/such/checkpoint") && e.contains("no such directory"),
+            "{e}"
+        );
         assert!(!out.exists(), "nothing is written for a bad checkpoint");
         // The flat policy's weights under a config with another actor.
         let ckpt = out.with_extension("ckpt");
         std::fs::create_dir_all(&ckpt).unwrap();
-        std::fs::copy("../assets/policies/flat-tripod/policy.safetensors", ckpt.join("policy.safetensors")).unwrap();
+        std::fs::copy(
+            "../assets/policies/flat-tripod/policy.safetensors",
+            ckpt.join("policy.safetensors"),
+        )
+        .unwrap();
         let config = std::fs::read_to_string("../assets/policies/flat-tripod/config.toml").unwrap();
         let changed = config.replace("actor_hidden = [\n    256,", "actor_hidden = [\n    200,");
         assert_ne!(config, changed);
@@ -285,7 +362,13 @@ mod tests {
 
     #[test]
     fn names_come_from_the_directory() {
-        assert_eq!(controller_name(Path::new("assets/policies/rough-climb")), "rough-climb");
-        assert_eq!(controller_name(Path::new("target/ci-pretrain-ppo/checkpoints/model_000001")), "ci-pretrain-ppo/model_000001");
+        assert_eq!(
+            controller_name(Path::new("assets/policies/rough-climb")),
+            "rough-climb"
+        );
+        assert_eq!(
+            controller_name(Path::new("target/ci-pretrain-ppo/checkpoints/model_000001")),
+            "ci-pretrain-ppo/model_000001"
+        );
     }
 }

@@ -15,7 +15,8 @@ fn color(i: usize) -> RGBColor {
 
 /// A one-panel figure.
 fn single(path: &Path, panel: Panel) -> Result<(), String> {
-    write_panels(path, None, 1, (1000, 540), &[panel]).map_err(|e| format!("{}: {e}", path.display()))
+    write_panels(path, None, 1, (1000, 540), &[panel])
+        .map_err(|e| format!("{}: {e}", path.display()))
 }
 
 /// Draws every plot the reports have data for into `dir`; returns the files written.
@@ -30,22 +31,46 @@ pub fn draw_all(dir: &Path, reports: &[ControllerReport]) -> Result<Vec<PathBuf>
     // Fig. 5: success rate against the feature's size.
     type Pick = fn(&host_sim::course::Feature) -> Option<f64>;
     let panels: [(&str, &str, &str, Pick); 4] = [
-        ("success_stairs_up.png", "Stairs up: success rate", "step height (cm)", |f| match f {
-            host_sim::course::Feature::StairsUp { step_height_m } => Some(*step_height_m as f64 * 100.0),
-            _ => None,
-        }),
-        ("success_stairs_down.png", "Stairs down: success rate", "step height (cm)", |f| match f {
-            host_sim::course::Feature::StairsDown { step_height_m } => Some(*step_height_m as f64 * 100.0),
-            _ => None,
-        }),
-        ("success_slopes_up.png", "Slopes up: success rate", "slope (deg)", |f| match f {
-            host_sim::course::Feature::SlopeUp { slope_deg } => Some(*slope_deg as f64),
-            _ => None,
-        }),
-        ("success_slopes_down.png", "Slopes down: success rate", "slope (deg)", |f| match f {
-            host_sim::course::Feature::SlopeDown { slope_deg } => Some(*slope_deg as f64),
-            _ => None,
-        }),
+        (
+            "success_stairs_up.png",
+            "Stairs up: success rate",
+            "step height (cm)",
+            |f| match f {
+                host_sim::course::Feature::StairsUp { step_height_m } => {
+                    Some(*step_height_m as f64 * 100.0)
+                }
+                _ => None,
+            },
+        ),
+        (
+            "success_stairs_down.png",
+            "Stairs down: success rate",
+            "step height (cm)",
+            |f| match f {
+                host_sim::course::Feature::StairsDown { step_height_m } => {
+                    Some(*step_height_m as f64 * 100.0)
+                }
+                _ => None,
+            },
+        ),
+        (
+            "success_slopes_up.png",
+            "Slopes up: success rate",
+            "slope (deg)",
+            |f| match f {
+                host_sim::course::Feature::SlopeUp { slope_deg } => Some(*slope_deg as f64),
+                _ => None,
+            },
+        ),
+        (
+            "success_slopes_down.png",
+            "Slopes down: success rate",
+            "slope (deg)",
+            |f| match f {
+                host_sim::course::Feature::SlopeDown { slope_deg } => Some(*slope_deg as f64),
+                _ => None,
+            },
+        ),
     ];
     for (file, title, x_label, pick) in panels {
         let lines: Vec<Line> = reports
@@ -53,44 +78,72 @@ pub fn draw_all(dir: &Path, reports: &[ControllerReport]) -> Result<Vec<PathBuf>
             .enumerate()
             .filter_map(|(i, r)| {
                 let t = r.terrain.as_ref()?;
-                let points: Vec<(f64, f64)> = t.features.iter().filter_map(|f| Some((pick(&f.feature)?, f.success_rate()))).collect();
-                (!points.is_empty()).then(|| Line::new(r.name.as_str(), points, color(i)).with_markers())
+                let points: Vec<(f64, f64)> = t
+                    .features
+                    .iter()
+                    .filter_map(|f| Some((pick(&f.feature)?, f.success_rate())))
+                    .collect();
+                (!points.is_empty())
+                    .then(|| Line::new(r.name.as_str(), points, color(i)).with_markers())
             })
             .collect();
         if !lines.is_empty() {
-            let panel = lines.into_iter().fold(Panel::new(title, x_label, "success rate").y_range(-0.02, 1.05), Panel::line);
+            let panel = lines.into_iter().fold(
+                Panel::new(title, x_label, "success rate").y_range(-0.02, 1.05),
+                Panel::line,
+            );
             single(&out(file), panel)?;
         }
     }
     // Fig. 3: per command axis, four stacked panels.
     for axis in 0..super::sine::AXES.len() {
-        let runs: Vec<(usize, &ControllerReport, &super::sine::SineRun)> =
-            reports.iter().enumerate().filter_map(|(i, r)| Some((i, r, r.sine.as_ref()?.get(axis)?))).collect();
-        let Some((_, _, first)) = runs.first() else { continue };
+        let runs: Vec<(usize, &ControllerReport, &super::sine::SineRun)> = reports
+            .iter()
+            .enumerate()
+            .filter_map(|(i, r)| Some((i, r, r.sine.as_ref()?.get(axis)?)))
+            .collect();
+        let Some((_, _, first)) = runs.first() else {
+            continue;
+        };
         let unit = if axis == 2 { "rad/s" } else { "m/s" };
         let path = out(&format!("sine_{}.png", super::sine::AXES[axis]));
         let trace = |s: &super::sine::SineRun, v: &[f32]| -> Vec<(f64, f64)> {
-            s.time_s.iter().zip(v).map(|(t, y)| (*t as f64, *y as f64)).collect()
+            s.time_s
+                .iter()
+                .zip(v)
+                .map(|(t, y)| (*t as f64, *y as f64))
+                .collect()
         };
         let name = super::sine::AXES[axis];
-        let mut tracking = Panel::new(format!("{name} command: tracking (command dashed)"), "time (s)", format!("{name} ({unit})"))
-            .line(Line::new("command", trace(first, &first.commanded), BLACK).dashed());
+        let mut tracking = Panel::new(
+            format!("{name} command: tracking (command dashed)"),
+            "time (s)",
+            format!("{name} ({unit})"),
+        )
+        .line(Line::new("command", trace(first, &first.commanded), BLACK).dashed());
         for (i, r, s) in &runs {
-            tracking = tracking.line(Line::new(format!("{} measured", r.name), trace(s, &s.measured), color(*i)));
+            tracking = tracking.line(Line::new(
+                format!("{} measured", r.name),
+                trace(s, &s.measured),
+                color(*i),
+            ));
         }
         let mut panels = vec![tracking];
-        let rest: [(&str, &str, fn(&super::sine::SineRun) -> &[f32]); 3] = [
+        type Series = fn(&super::sine::SineRun) -> &[f32];
+        let rest: [(&str, &str, Series); 3] = [
             ("vertical velocity vz", "vz (m/s)", |s| &s.vz_m_s),
             ("roll", "roll (deg)", |s| &s.roll_deg),
             ("pitch", "pitch (deg)", |s| &s.pitch_deg),
         ];
         for (what, y_label, get) in rest {
-            let panel = runs.iter().fold(Panel::new(format!("{name} command: {what}"), "time (s)", y_label), |p, (i, r, s)| {
-                p.line(Line::new(r.name.as_str(), trace(s, get(s)), color(*i)))
-            });
+            let panel = runs.iter().fold(
+                Panel::new(format!("{name} command: {what}"), "time (s)", y_label),
+                |p, (i, r, s)| p.line(Line::new(r.name.as_str(), trace(s, get(s)), color(*i))),
+            );
             panels.push(panel);
         }
-        write_panels(&path, None, 1, (1000, 330), &panels).map_err(|e| format!("{}: {e}", path.display()))?;
+        write_panels(&path, None, 1, (1000, 330), &panels)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
     }
     // Fig. 4: terrain row per kind over iterations.
     let mut kinds: Vec<String> = reports
@@ -112,21 +165,62 @@ pub fn draw_all(dir: &Path, reports: &[ControllerReport]) -> Result<Vec<PathBuf>
                 Some(Line::new(r.name.as_str(), k.points.clone(), color(i)))
             })
             .collect();
-        let panel = Panel::new(format!("{kind}: mean terrain row"), "iteration", "terrain row (level)").integer_x().y_range(0.0, top);
-        single(&out(&format!("curriculum_{kind}.png")), lines.into_iter().fold(panel, Panel::line))?;
+        let panel = Panel::new(
+            format!("{kind}: mean terrain row"),
+            "iteration",
+            "terrain row (level)",
+        )
+        .integer_x()
+        .y_range(0.0, top);
+        single(
+            &out(&format!("curriculum_{kind}.png")),
+            lines.into_iter().fold(panel, Panel::line),
+        )?;
     }
     // Table III's search: survivors against magnitude, walking, per axis and rule.
-    for (axis, name) in [(super::push::Axis::X, "X"), (super::push::Axis::Y, "Y"), (super::push::Axis::Z, "Z")] {
-        let mut panel = Panel::new(format!("Pushes along {name} while walking: survivors"), "push magnitude (m/s)", "fraction surviving")
-            .y_range(-0.02, 1.05);
+    for (axis, name) in [
+        (super::push::Axis::X, "X"),
+        (super::push::Axis::Y, "Y"),
+        (super::push::Axis::Z, "Z"),
+    ] {
+        let mut panel = Panel::new(
+            format!("Pushes along {name} while walking: survivors"),
+            "push magnitude (m/s)",
+            "fraction surviving",
+        )
+        .y_range(-0.02, 1.05);
         for (i, r) in reports.iter().enumerate() {
             let Some(p) = &r.push else { continue };
-            let Some(cond) = p.conditions.iter().find(|c| c.axis == axis && c.gait == super::push::Gait::Walk) else { continue };
-            let pts = |f: fn(&super::push::PointResult) -> usize| -> Vec<(f64, f64)> {
-                cond.points.iter().map(|q| (q.magnitude_m_s as f64, f(q) as f64 / q.robots.max(1) as f64)).collect()
+            let Some(cond) = p
+                .conditions
+                .iter()
+                .find(|c| c.axis == axis && c.gait == super::push::Gait::Walk)
+            else {
+                continue;
             };
-            panel = panel.line(Line::new(format!("{} strict", r.name), pts(|q| q.survived_strict), color(i)).with_markers());
-            panel = panel.line(Line::new(format!("{} current", r.name), pts(|q| q.survived_current), color(i)).with_markers().dashed());
+            let pts = |f: fn(&super::push::PointResult) -> usize| -> Vec<(f64, f64)> {
+                cond.points
+                    .iter()
+                    .map(|q| (q.magnitude_m_s as f64, f(q) as f64 / q.robots.max(1) as f64))
+                    .collect()
+            };
+            panel = panel.line(
+                Line::new(
+                    format!("{} strict", r.name),
+                    pts(|q| q.survived_strict),
+                    color(i),
+                )
+                .with_markers(),
+            );
+            panel = panel.line(
+                Line::new(
+                    format!("{} current", r.name),
+                    pts(|q| q.survived_current),
+                    color(i),
+                )
+                .with_markers()
+                .dashed(),
+            );
         }
         if !panel.lines.is_empty() {
             single(&out(&format!("push_{name}_walk.png")), panel)?;

@@ -18,8 +18,8 @@ use crate::algo::ppo::Ppo;
 use crate::config::TrainConfig;
 use host_sim::clearance::BodyShapes;
 use host_sim::env::HexapodEnv;
+use host_sim::frames::{quat_from_yaw, rotate, yaw_rad};
 use host_sim::urdf_model::{default_urdf_path, UrdfModel};
-use host_sim::frames::{rotate, quat_from_yaw, yaw_rad};
 use serde::Serialize;
 
 /// Standing, then walking at the command, before the first push, s.
@@ -159,7 +159,12 @@ struct Bracket {
 
 impl Bracket {
     fn new(max: f32) -> Self {
-        Self { lo: 0.0, hi: max, hi_tested: false, saturated: false }
+        Self {
+            lo: 0.0,
+            hi: max,
+            hi_tested: false,
+            saturated: false,
+        }
     }
 
     /// Magnitudes to test next: `k` inside the bracket, and its top until it is tested.
@@ -167,7 +172,9 @@ impl Bracket {
         if self.saturated {
             return Vec::new();
         }
-        let mut p: Vec<f32> = (1..=k).map(|j| self.lo + (self.hi - self.lo) * j as f32 / (k + 1) as f32).collect();
+        let mut p: Vec<f32> = (1..=k)
+            .map(|j| self.lo + (self.hi - self.lo) * j as f32 / (k + 1) as f32)
+            .collect();
         if !self.hi_tested {
             p.push(self.hi);
         }
@@ -176,8 +183,11 @@ impl Bracket {
 
     /// Narrows the bracket with tested magnitudes (`tolerated` per magnitude).
     fn update(&mut self, results: &[(f32, bool)]) {
-        let mut inside: Vec<(f32, bool)> =
-            results.iter().copied().filter(|(m, _)| *m > self.lo && *m <= self.hi).collect();
+        let mut inside: Vec<(f32, bool)> = results
+            .iter()
+            .copied()
+            .filter(|(m, _)| *m > self.lo && *m <= self.hi)
+            .collect();
         inside.sort_by(|a, b| a.0.total_cmp(&b.0));
         if let Some(&(m, ok)) = inside.iter().find(|(m, _)| *m == self.hi) {
             self.hi_tested = true;
@@ -197,7 +207,10 @@ impl Bracket {
     }
 
     fn tolerance(&self) -> Tolerance {
-        Tolerance { tolerated_m_s: self.lo, failed_m_s: if self.saturated { None } else { Some(self.hi) } }
+        Tolerance {
+            tolerated_m_s: self.lo,
+            failed_m_s: if self.saturated { None } else { Some(self.hi) },
+        }
     }
 }
 
@@ -226,9 +239,17 @@ pub const CONDITIONS: [(Axis, Gait); 6] = [
 ];
 
 /// Runs the protocol: `rounds` of bisection with `k` magnitudes per bracket.
-pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions, rounds: usize, k: usize) -> anyhow::Result<PushResult> {
-    let mut brackets: Vec<[Bracket; 2]> =
-        CONDITIONS.iter().map(|_| [Bracket::new(MAX_CURRENT_M_S), Bracket::new(MAX_STRICT_M_S)]).collect();
+pub fn run(
+    cfg: &TrainConfig,
+    ppo: &mut Ppo,
+    c: &Conditions,
+    rounds: usize,
+    k: usize,
+) -> anyhow::Result<PushResult> {
+    let mut brackets: Vec<[Bracket; 2]> = CONDITIONS
+        .iter()
+        .map(|_| [Bracket::new(MAX_CURRENT_M_S), Bracket::new(MAX_STRICT_M_S)])
+        .collect();
     let mut tested: Vec<Vec<PointResult>> = vec![Vec::new(); CONDITIONS.len()];
     for round in 0..rounds {
         let mut jobs: Vec<Job> = Vec::new();
@@ -240,7 +261,10 @@ pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions, rounds: usize, k: u
             ms.retain(|m| !tested[condition].iter().any(|p| p.magnitude_m_s == *m));
             ms.sort_by(f32::total_cmp);
             ms.dedup();
-            jobs.extend(ms.into_iter().map(|magnitude_m_s| Job { condition, magnitude_m_s }));
+            jobs.extend(ms.into_iter().map(|magnitude_m_s| Job {
+                condition,
+                magnitude_m_s,
+            }));
         }
         if jobs.is_empty() {
             break;
@@ -262,8 +286,14 @@ pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions, rounds: usize, k: u
         }
         for (condition, pair) in brackets.iter_mut().enumerate() {
             let need = c.survivors_needed();
-            let current: Vec<(f32, bool)> = tested[condition].iter().map(|p| (p.magnitude_m_s, p.survived_current >= need)).collect();
-            let strict: Vec<(f32, bool)> = tested[condition].iter().map(|p| (p.magnitude_m_s, p.survived_strict >= need)).collect();
+            let current: Vec<(f32, bool)> = tested[condition]
+                .iter()
+                .map(|p| (p.magnitude_m_s, p.survived_current >= need))
+                .collect();
+            let strict: Vec<(f32, bool)> = tested[condition]
+                .iter()
+                .map(|p| (p.magnitude_m_s, p.survived_strict >= need))
+                .collect();
             pair[0].update(&current);
             pair[1].update(&strict);
         }
@@ -274,7 +304,13 @@ pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions, rounds: usize, k: u
         .map(|(i, &(axis, gait))| {
             let mut points = tested[i].clone();
             points.sort_by(|a, b| a.magnitude_m_s.total_cmp(&b.magnitude_m_s));
-            ConditionResult { axis, gait, current: brackets[i][0].tolerance(), strict: brackets[i][1].tolerance(), points }
+            ConditionResult {
+                axis,
+                gait,
+                current: brackets[i][0].tolerance(),
+                strict: brackets[i][1].tolerance(),
+                points,
+            }
         })
         .collect();
     Ok(PushResult {
@@ -289,13 +325,24 @@ pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions, rounds: usize, k: u
 }
 
 /// Runs every job with `c.trials` robots each, in one batch.
-fn run_jobs(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions, jobs: &[Job]) -> anyhow::Result<Vec<Outcome>> {
+fn run_jobs(
+    cfg: &TrainConfig,
+    ppo: &mut Ppo,
+    c: &Conditions,
+    jobs: &[Job],
+) -> anyhow::Result<Vec<Outcome>> {
     let n = c.robots(jobs.len());
     let duration_s = SETTLE_S + (PUSHES - 1) as f32 * INTERVAL_S + AFTER_LAST_S;
     let mut env = HexapodEnv::new(c.sim_config(cfg, n, duration_s))?;
     seed_trials(&mut env, c);
     for i in 0..n {
-        env.set_spawn_pose(i, Some(host_sim::env::SpawnPose { position_m: [0.0, 0.0], yaw_rad: 0.0 }));
+        env.set_spawn_pose(
+            i,
+            Some(host_sim::env::SpawnPose {
+                position_m: [0.0, 0.0],
+                yaw_rad: 0.0,
+            }),
+        );
     }
     let job_of = |i: usize| jobs[i / c.trials];
     let first = steps(SETTLE_S);
@@ -318,7 +365,11 @@ fn run_jobs(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions, jobs: &[Job]) -> a
             for i in 0..n {
                 let job = job_of(i);
                 let (axis, gait) = CONDITIONS[job.condition];
-                commands[i] = if gait == Gait::Walk { WALK_COMMAND } else { [0.0; 3] };
+                commands[i] = if gait == Gait::Walk {
+                    WALK_COMMAND
+                } else {
+                    [0.0; 3]
+                };
                 if let Some(p) = push_steps.iter().position(|s| *s == step) {
                     let sign = if p % 2 == 0 { 1.0 } else { -1.0 };
                     let m = sign * job.magnitude_m_s;
@@ -355,7 +406,11 @@ fn run_jobs(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions, jobs: &[Job]) -> a
                     o.strict = Some(StrictFailure::Tilt);
                 } else if checks.contains(&step) {
                     let job = job_of(i);
-                    let command = if CONDITIONS[job.condition].1 == Gait::Walk { WALK_COMMAND } else { [0.0; 3] };
+                    let command = if CONDITIONS[job.condition].1 == Gait::Walk {
+                        WALK_COMMAND
+                    } else {
+                        [0.0; 3]
+                    };
                     let h = &history[i];
                     let recent = &h[h.len().saturating_sub(window)..];
                     let mut mean = [0.0f32; 3];
@@ -364,7 +419,10 @@ fn run_jobs(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions, jobs: &[Job]) -> a
                             mean[k] += v[k] / recent.len() as f32;
                         }
                     }
-                    let err = ((mean[0] - command[0]).powi(2) + (mean[1] - command[1]).powi(2) + mean[2].powi(2)).sqrt();
+                    let err = ((mean[0] - command[0]).powi(2)
+                        + (mean[1] - command[1]).powi(2)
+                        + mean[2].powi(2))
+                    .sqrt();
                     if err > STRICT_RETURN_M_S {
                         o.strict = Some(StrictFailure::NoReturn);
                     }
@@ -392,8 +450,14 @@ mod tests {
             b.update(&tested);
         }
         let t = b.tolerance();
-        assert!(t.tolerated_m_s <= 1.3 && t.failed_m_s.unwrap() > 1.3, "{t:?}");
-        assert!(t.failed_m_s.unwrap() - t.tolerated_m_s < 3.0 / 64.0 + 1e-4, "{t:?}");
+        assert!(
+            t.tolerated_m_s <= 1.3 && t.failed_m_s.unwrap() > 1.3,
+            "{t:?}"
+        );
+        assert!(
+            t.failed_m_s.unwrap() - t.tolerated_m_s < 3.0 / 64.0 + 1e-4,
+            "{t:?}"
+        );
     }
 
     #[test]

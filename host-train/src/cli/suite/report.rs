@@ -12,8 +12,13 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
 /// The paper's Table III (Y axis), m/s.
-pub const PAPER_TABLE_III_Y_M_S: [(&str, f32); 5] =
-    [("Ours", 0.803), ("RMA", 0.738), ("Concurrent", 0.463), ("Baseline", 0.201), ("MPC", 0.112)];
+pub const PAPER_TABLE_III_Y_M_S: [(&str, f32); 5] = [
+    ("Ours", 0.803),
+    ("RMA", 0.738),
+    ("Concurrent", 0.463),
+    ("Baseline", 0.201),
+    ("MPC", 0.112),
+];
 
 /// One controller's results.
 #[derive(Clone, Debug, Serialize)]
@@ -81,11 +86,25 @@ impl SuiteReport {
         let mut s = String::new();
         let names: Vec<&str> = self.controllers.iter().map(|c| c.name.as_str()).collect();
         let _ = writeln!(s, "# Paper suite: {}\n", names.join(", "));
-        let _ = writeln!(s, "Made by `{}`; `report.json` holds every number below and more.\n", self.command);
-        let _ = writeln!(s, "| controller | checkpoint | iteration | trained on |\n|---|---|---|---|");
+        let _ = writeln!(
+            s,
+            "Made by `{}`; `report.json` holds every number below and more.\n",
+            self.command
+        );
+        let _ = writeln!(
+            s,
+            "| controller | checkpoint | iteration | trained on |\n|---|---|---|---|"
+        );
         for c in &self.controllers {
-            let it = c.iteration.map(|i| i.to_string()).unwrap_or_else(|| "?".into());
-            let _ = writeln!(s, "| {} | `{}` | {} | {} |", c.name, c.checkpoint, it, c.trained_on);
+            let it = c
+                .iteration
+                .map(|i| i.to_string())
+                .unwrap_or_else(|| "?".into());
+            let _ = writeln!(
+                s,
+                "| {} | `{}` | {} | {} |",
+                c.name, c.checkpoint, it, c.trained_on
+            );
         }
         if let Some(c) = self.controllers.first() {
             let k = &c.conditions;
@@ -115,7 +134,10 @@ impl SuiteReport {
         self.terrain_section(&mut s);
         self.sine_section(&mut s);
         self.curriculum_section(&mut s);
-        let _ = writeln!(s, "## Run time\n\n| controller | protocol | wall clock, s |\n|---|---|---|");
+        let _ = writeln!(
+            s,
+            "## Run time\n\n| controller | protocol | wall clock, s |\n|---|---|---|"
+        );
         for c in &self.controllers {
             for (p, t) in &c.wall_clock_s {
                 let _ = writeln!(s, "| {} | {} | {:.0} |", c.name, p, t);
@@ -131,8 +153,14 @@ impl SuiteReport {
     }
 
     fn push_section(&self, s: &mut String) {
-        let pushed: Vec<(&ControllerReport, &PushResult)> = self.controllers.iter().filter_map(|c| Some((c, c.push.as_ref()?))).collect();
-        let Some((_, p0)) = pushed.first() else { return };
+        let pushed: Vec<(&ControllerReport, &PushResult)> = self
+            .controllers
+            .iter()
+            .filter_map(|c| Some((c, c.push.as_ref()?)))
+            .collect();
+        let Some((_, p0)) = pushed.first() else {
+            return;
+        };
         let _ = writeln!(
             s,
             "## Velocity-disturbance tolerance (Table III)\n\n\
@@ -186,8 +214,18 @@ impl SuiteReport {
         let _ = writeln!(s, "### Table III layout (Y axis, walking at 0.3 m/s)\n");
         let _ = writeln!(s, "| Controllers | Disturbances [Min, Max] (m/s), strict rule | current rule |\n|---|---|---|");
         for (c, p) in &pushed {
-            if let Some(cond) = p.conditions.iter().find(|x| x.axis == Axis::Y && x.gait == Gait::Walk) {
-                let _ = writeln!(s, "| {} | {} | {} |", c.name, range(&cond.strict), range(&cond.current));
+            if let Some(cond) = p
+                .conditions
+                .iter()
+                .find(|x| x.axis == Axis::Y && x.gait == Gait::Walk)
+            {
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {} |",
+                    c.name,
+                    range(&cond.strict),
+                    range(&cond.current)
+                );
             }
         }
         for (name, v) in PAPER_TABLE_III_Y_M_S {
@@ -229,7 +267,16 @@ impl SuiteReport {
                     let _ = writeln!(
                         s,
                         "| {} | {:?} {:?} | {:.3} | {} | {} | {} / {} / {} / {} |",
-                        c.name, cond.axis, cond.gait, q.magnitude_m_s, q.survived_current, q.survived_strict, f[0], f[1], f[2], f[3]
+                        c.name,
+                        cond.axis,
+                        cond.gait,
+                        q.magnitude_m_s,
+                        q.survived_current,
+                        q.survived_strict,
+                        f[0],
+                        f[1],
+                        f[2],
+                        f[3]
                     );
                 }
             }
@@ -241,7 +288,11 @@ impl SuiteReport {
     }
 
     fn terrain_section(&self, s: &mut String) {
-        let runs: Vec<(&ControllerReport, &TerrainResult)> = self.controllers.iter().filter_map(|c| Some((c, c.terrain.as_ref()?))).collect();
+        let runs: Vec<(&ControllerReport, &TerrainResult)> = self
+            .controllers
+            .iter()
+            .filter_map(|c| Some((c, c.terrain.as_ref()?)))
+            .collect();
         let Some((_, t0)) = runs.first() else { return };
         if !t0.features.is_empty() {
             let _ = writeln!(
@@ -259,20 +310,39 @@ impl SuiteReport {
                 t0.success_distance_m,
                 terrain::TERRAIN_COMMAND[0] * t0.duration_s
             );
-            let _ = writeln!(s, "| terrain | {} |\n|---|{}", runs.iter().map(|r| r.0.name.as_str()).collect::<Vec<_>>().join(" | "), "---|".repeat(runs.len()));
+            let _ = writeln!(
+                s,
+                "| terrain | {} |\n|---|{}",
+                runs.iter()
+                    .map(|r| r.0.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(" | "),
+                "---|".repeat(runs.len())
+            );
             for (k, f) in t0.features.iter().enumerate() {
-                let cells: Vec<String> = runs.iter().map(|(_, t)| t.features.get(k).map(cell).unwrap_or_else(|| "-".into())).collect();
+                let cells: Vec<String> = runs
+                    .iter()
+                    .map(|(_, t)| t.features.get(k).map(cell).unwrap_or_else(|| "-".into()))
+                    .collect();
                 let _ = writeln!(s, "| {} | {} |", f.name, cells.join(" | "));
             }
             let totals: Vec<String> = runs
                 .iter()
                 .map(|(_, t)| {
-                    let (ok, n) = t.features.iter().fold((0, 0), |(a, b), f| (a + f.successes, b + f.trials));
+                    let (ok, n) = t
+                        .features
+                        .iter()
+                        .fold((0, 0), |(a, b), f| (a + f.successes, b + f.trials));
                     format!("{ok}/{n}")
                 })
                 .collect();
             let _ = writeln!(s, "| **all** | {} |\n", totals.join(" | "));
-            for f in ["success_stairs_up.png", "success_stairs_down.png", "success_slopes_up.png", "success_slopes_down.png"] {
+            for f in [
+                "success_stairs_up.png",
+                "success_stairs_down.png",
+                "success_slopes_up.png",
+                "success_slopes_down.png",
+            ] {
                 self.plot_link(s, f);
             }
         }
@@ -289,10 +359,17 @@ impl SuiteReport {
                 t0.run_up_m,
                 t0.success_distance_m
             );
-            let _ = writeln!(s, "| controller | successes | falls | mean distance, m |\n|---|---|---|---|");
+            let _ = writeln!(
+                s,
+                "| controller | successes | falls | mean distance, m |\n|---|---|---|---|"
+            );
             for (c, t) in &runs {
                 if let Some(f) = &t.outdoor_step {
-                    let _ = writeln!(s, "| {} | {}/{} | {} | {:.2} |", c.name, f.successes, f.trials, f.falls, f.mean_distance_m);
+                    let _ = writeln!(
+                        s,
+                        "| {} | {}/{} | {} | {:.2} |",
+                        c.name, f.successes, f.trials, f.falls, f.mean_distance_m
+                    );
                 }
             }
             let _ = writeln!(s);
@@ -300,7 +377,11 @@ impl SuiteReport {
     }
 
     fn sine_section(&self, s: &mut String) {
-        let runs: Vec<(&ControllerReport, &Vec<SineRun>)> = self.controllers.iter().filter_map(|c| Some((c, c.sine.as_ref()?))).collect();
+        let runs: Vec<(&ControllerReport, &Vec<SineRun>)> = self
+            .controllers
+            .iter()
+            .filter_map(|c| Some((c, c.sine.as_ref()?)))
+            .collect();
         if runs.is_empty() {
             return;
         }
@@ -324,7 +405,16 @@ impl SuiteReport {
                 let _ = writeln!(
                     s,
                     "| {} | {} | {:.3} {} | {:.3} | {:.3} | {:.2} | {:.2} | {}/{} |",
-                    c.name, r.axis, r.tracking_rmse, unit, r.cross_axis_rms, r.mean_abs_vz_m_s, r.roll_rms_deg, r.pitch_rms_deg, r.falls, r.trials
+                    c.name,
+                    r.axis,
+                    r.tracking_rmse,
+                    unit,
+                    r.cross_axis_rms,
+                    r.mean_abs_vz_m_s,
+                    r.roll_rms_deg,
+                    r.pitch_rms_deg,
+                    r.falls,
+                    r.trials
                 );
             }
         }
@@ -335,7 +425,11 @@ impl SuiteReport {
     }
 
     fn curriculum_section(&self, s: &mut String) {
-        let runs: Vec<(&ControllerReport, &CurriculumResult)> = self.controllers.iter().filter_map(|c| Some((c, c.curriculum.as_ref()?))).collect();
+        let runs: Vec<(&ControllerReport, &CurriculumResult)> = self
+            .controllers
+            .iter()
+            .filter_map(|c| Some((c, c.curriculum.as_ref()?)))
+            .collect();
         if runs.is_empty() {
             return;
         }
@@ -351,14 +445,32 @@ impl SuiteReport {
         let _ = writeln!(s, "| controller | metrics | iterations | rows | tile kind: final row (highest) |\n|---|---|---|---|---|");
         let mut kinds: Vec<String> = Vec::new();
         for (c, r) in &runs {
-            let its = r.iterations.map(|(a, b)| format!("{a:.0}-{b:.0}")).unwrap_or_else(|| "-".into());
+            let its = r
+                .iterations
+                .map(|(a, b)| format!("{a:.0}-{b:.0}"))
+                .unwrap_or_else(|| "-".into());
             let levels = if r.kinds.is_empty() {
                 r.note.clone().unwrap_or_default()
             } else {
-                r.kinds.iter().map(|k| format!("{} {:.2} ({:.2})", k.kind, k.final_level, k.max_level)).collect::<Vec<_>>().join("; ")
+                r.kinds
+                    .iter()
+                    .map(|k| format!("{} {:.2} ({:.2})", k.kind, k.final_level, k.max_level))
+                    .collect::<Vec<_>>()
+                    .join("; ")
             };
             kinds.extend(r.kinds.iter().map(|k| k.kind.clone()));
-            let _ = writeln!(s, "| {} | {} | {} | {} | {} |", c.name, r.metrics.as_deref().map(|m| format!("`{m}`")).unwrap_or_else(|| "-".into()), its, r.rows, levels);
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} |",
+                c.name,
+                r.metrics
+                    .as_deref()
+                    .map(|m| format!("`{m}`"))
+                    .unwrap_or_else(|| "-".into()),
+                its,
+                r.rows,
+                levels
+            );
         }
         let _ = writeln!(s);
         kinds.sort();

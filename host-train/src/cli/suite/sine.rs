@@ -80,7 +80,13 @@ pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions) -> anyhow::Result<V
     let mut env = HexapodEnv::new(c.sim_config(cfg, n, STAND_S + DURATION_S))?;
     seed_trials(&mut env, c);
     for i in 0..n {
-        env.set_spawn_pose(i, Some(host_sim::env::SpawnPose { position_m: [0.0, 0.0], yaw_rad: 0.0 }));
+        env.set_spawn_pose(
+            i,
+            Some(host_sim::env::SpawnPose {
+                position_m: [0.0, 0.0],
+                yaw_rad: 0.0,
+            }),
+        );
     }
     let axis_of = |i: usize| i / c.trials;
     let stand = steps(STAND_S);
@@ -116,7 +122,14 @@ pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions) -> anyhow::Result<V
                     _ => v[0].hypot(v[1]),
                 };
                 let (roll, pitch) = roll_pitch_rad(&s);
-                samples[i].push([command(axis, t_of(step))[axis], measured, cross, v[2], roll.to_degrees(), pitch.to_degrees()]);
+                samples[i].push([
+                    command(axis, t_of(step))[axis],
+                    measured,
+                    cross,
+                    v[2],
+                    roll.to_degrees(),
+                    pitch.to_degrees(),
+                ]);
             }
         },
     )?;
@@ -126,11 +139,16 @@ pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions) -> anyhow::Result<V
             let robots: Vec<usize> = (0..n).filter(|&i| axis_of(i) == axis).collect();
             let all: Vec<&[f32; 6]> = robots.iter().flat_map(|&i| samples[i].iter()).collect();
             let m = all.len().max(1) as f64;
-            let rms = |f: &dyn Fn(&[f32; 6]) -> f64| (all.iter().map(|s| f(s).powi(2)).sum::<f64>() / m).sqrt();
+            let rms = |f: &dyn Fn(&[f32; 6]) -> f64| {
+                (all.iter().map(|s| f(s).powi(2)).sum::<f64>() / m).sqrt()
+            };
             let mean_trace = |k: usize| -> Vec<f32> {
                 (0..sample_count)
                     .map(|t| {
-                        let v: Vec<f32> = robots.iter().filter_map(|&i| samples[i].get(t).map(|s| s[k])).collect();
+                        let v: Vec<f32> = robots
+                            .iter()
+                            .filter_map(|&i| samples[i].get(t).map(|s| s[k]))
+                            .collect();
                         if v.is_empty() {
                             f32::NAN
                         } else {
@@ -151,7 +169,9 @@ pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions) -> anyhow::Result<V
                 roll_rms_deg: rms(&|s| s[4] as f64),
                 pitch_rms_deg: rms(&|s| s[5] as f64),
                 time_s: (stand..total).map(t_of).collect(),
-                commanded: (stand..total).map(|s| command(axis, t_of(s))[axis]).collect(),
+                commanded: (stand..total)
+                    .map(|s| command(axis, t_of(s))[axis])
+                    .collect(),
                 measured: mean_trace(1),
                 vz_m_s: mean_trace(3),
                 roll_deg: mean_trace(4),

@@ -72,28 +72,51 @@ pub struct TerrainResult {
 
 /// The features of the terrain protocol, in report order.
 pub fn features(quick: bool) -> Vec<Feature> {
-    let (steps_m, slopes): (Vec<f32>, Vec<f32>) =
-        if quick { (vec![QUICK_STEP_M], vec![QUICK_SLOPE_DEG]) } else { (STEP_HEIGHTS_M.to_vec(), SLOPES_DEG.to_vec()) };
+    let (steps_m, slopes): (Vec<f32>, Vec<f32>) = if quick {
+        (vec![QUICK_STEP_M], vec![QUICK_SLOPE_DEG])
+    } else {
+        (STEP_HEIGHTS_M.to_vec(), SLOPES_DEG.to_vec())
+    };
     let mut f: Vec<Feature> = Vec::new();
-    f.extend(steps_m.iter().map(|&h| Feature::StairsUp { step_height_m: h }));
-    f.extend(steps_m.iter().map(|&h| Feature::StairsDown { step_height_m: h }));
+    f.extend(
+        steps_m
+            .iter()
+            .map(|&h| Feature::StairsUp { step_height_m: h }),
+    );
+    f.extend(
+        steps_m
+            .iter()
+            .map(|&h| Feature::StairsDown { step_height_m: h }),
+    );
     f.extend(slopes.iter().map(|&d| Feature::SlopeUp { slope_deg: d }));
     f.extend(slopes.iter().map(|&d| Feature::SlopeDown { slope_deg: d }));
     f
 }
 
 /// Runs the terrain features (`terrain`) and the outdoor step (`step`) in one batch.
-pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions, terrain: bool, step: bool) -> anyhow::Result<TerrainResult> {
+pub fn run(
+    cfg: &TrainConfig,
+    ppo: &mut Ppo,
+    c: &Conditions,
+    terrain: bool,
+    step: bool,
+) -> anyhow::Result<TerrainResult> {
     let mut lanes: Vec<(Feature, [f32; 3])> = Vec::new();
     if terrain {
         lanes.extend(features(c.quick).into_iter().map(|f| (f, TERRAIN_COMMAND)));
     }
     if step {
-        lanes.push((Feature::Step { height_m: OUTDOOR_STEP_M }, OUTDOOR_COMMAND));
+        lanes.push((
+            Feature::Step {
+                height_m: OUTDOOR_STEP_M,
+            },
+            OUTDOOR_COMMAND,
+        ));
     }
     let course = Course::new(&lanes.iter().map(|l| l.0).collect::<Vec<_>>());
     let n = c.robots(lanes.len());
-    let mut env = HexapodEnv::with_terrain(c.sim_config(cfg, n, DURATION_S), course.terrain().clone())?;
+    let mut env =
+        HexapodEnv::with_terrain(c.sim_config(cfg, n, DURATION_S), course.terrain().clone())?;
     seed_trials(&mut env, c);
     let lane_of = |i: usize| i / c.trials;
     for i in 0..n {
@@ -130,7 +153,10 @@ pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions, terrain: bool, step
         .enumerate()
         .map(|(lane, (feature, command))| {
             let robots: Vec<usize> = (0..n).filter(|&i| lane_of(i) == lane).collect();
-            let successes = robots.iter().filter(|&&i| !fell[i] && distance_m[i] >= SUCCESS_DISTANCE_M).count();
+            let successes = robots
+                .iter()
+                .filter(|&&i| !fell[i] && distance_m[i] >= SUCCESS_DISTANCE_M)
+                .count();
             FeatureResult {
                 feature: *feature,
                 name: feature.describe(),
@@ -138,7 +164,8 @@ pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions, terrain: bool, step
                 trials: robots.len(),
                 successes,
                 falls: robots.iter().filter(|&&i| fell[i]).count(),
-                mean_distance_m: robots.iter().map(|&i| distance_m[i] as f64).sum::<f64>() / robots.len().max(1) as f64,
+                mean_distance_m: robots.iter().map(|&i| distance_m[i] as f64).sum::<f64>()
+                    / robots.len().max(1) as f64,
             }
         })
         .collect();

@@ -1,11 +1,16 @@
-//! `hexapod pretrain`: a warm start for PPO + AMP by behavior cloning. The scripted tripod
-//! gait (host-sim's `TripodGait`, with the motion priors' period and clearance, following
-//! each robot's sampled command) drives the simulated robots, with Gaussian noise on the
-//! executed actions so the data covers the states around the gait; the actor (with its
-//! memory encoder) regresses the clean gait action, the estimator the true base velocity,
-//! and the critic the discounted task return. The result is an iteration-0 checkpoint that
-//! `hexapod train --resume` fine-tunes. Without it, PPO from a random policy needs far
-//! more samples than a 2-core machine gives to find stepping at all.
+//! `hexapod pretrain`: a warm start for PPO + AMP by behavior cloning. An expert drives the
+//! simulated robots, following each robot's sampled command, with Gaussian noise on the
+//! executed actions so the data covers the states around its gait; the actor (with its
+//! memory encoder) regresses the expert's clean action, the estimator the true base
+//! velocity, and the critic the discounted task return. The result is an iteration-0
+//! checkpoint that `hexapod train --resume` fine-tunes. Without it, PPO from a random
+//! policy needs far more samples than a 2-core machine gives to find stepping at all.
+//!
+//! Two experts (`--expert`): `priors` (the default) plays the motion priors themselves,
+//! blended between the clips of the command grid ([`PriorExpert`]), so the warm start walks
+//! the gait the discriminator rewards; `scripted` is host-sim's `TripodGait` with the
+//! priors' period and clearance (duty factor 0.5, sine lift, fixed footholds), a different
+//! gait the discriminator separates from the first iteration.
 
 use crate::algo::adam::Adam;
 use crate::algo::ppo::Ppo;
@@ -13,6 +18,8 @@ use crate::algo::storage::gather_rows;
 use crate::checkpoint;
 use crate::config::{EnvKind, TrainConfig};
 use crate::nn::actor_critic::CriticInput;
+use crate::priors::dataset::MotionDataset;
+use crate::priors::expert::PriorExpert;
 use anyhow::Context;
 use candle_core::{Device, Tensor};
 use clap::Args;
@@ -59,6 +66,52 @@ pub struct PretrainArgs {
     /// Samples per gradient step.
     #[arg(long, default_value_t = 2048)]
     pub batch: usize,
+    /// The gait to clone: the motion priors (`amp.priors_dir` of the preset) or host-sim's
+    /// scripted tripod gait.
+    #[arg(long, value_enum, default_value_t = ExpertKind::Priors)]
+    pub expert: ExpertKind,
+}
+
+/// Which gait `hexapod pretrain` clones.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ExpertKind {
+    /// The motion priors, blended between the clips of the command grid.
+    Priors,
+    /// host-sim's scripted tripod gait.
+    Scripted,
+}
+
+/// The expert of a pretraining run.
+enum Expert {
+    Priors(PriorExpert),
+    Scripted,
+}
+
+impl Expert {
+    fn load(kind: ExpertKind, cfg: &TrainConfig) -> anyhow::Result<Self> {
+        Ok(match kind {
+            ExpertKind::Scripted => Self::Scripted,
+            ExpertKind::Priors => {
+                let dir = std::path::Path::new(&cfg.amp.priors_dir);
+                let data = MotionDataset::load_dir(dir)?;
+                Self::Priors(
+                    PriorExpert::new(data.clips()).with_context(|| dir.display().to_string())?,
+                )
+            }
+        })
+    }
+
+    /// The action for `command`, `step` policy steps after the episode start.
+    fn action(&self, command: [f32; 3], step: usize) -> [f32; NUM_JOINTS] {
+        match self {
+            Self::Scripted => expert_action(command, step as f32 * POLICY_DT_S),
+            // The target of the coming policy step is the next frame.
+            Self::Priors(expert) => {
+                let q = expert.joint_targets(command, step + 1);
+                std::array::from_fn(|j| (q[j] - Q0_RAD[j]) / ACTION_SCALE_RAD)
+            }
+        }
+    }
 }
 
 /// The command `(vx, vy, wz)` a robot's actor observation carries.
@@ -99,11 +152,11 @@ impl Dataset {
 }
 
 /// Runs the expert on the simulator and records observations, labels and returns.
-fn collect(cfg: &TrainConfig, args: &PretrainArgs) -> anyhow::Result<Dataset> {
+fn collect(cfg: &TrainConfig, args: &PretrainArgs, expert: &Expert) -> anyhow::Result<Dataset> {
     let mut env = host_sim::env::HexapodEnv::new(cfg.resolved_sim())?;
     let n = env.num_envs();
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.env.seed ^ 0xbc);
-    let mut t_s = vec![0.0f32; n];
+    let mut step = vec![0usize; n];
     let mut obs = env.reset();
     let mut data = Dataset::default();
     let (mut rewards, mut dones) = (
@@ -115,7 +168,7 @@ fn collect(cfg: &TrainConfig, args: &PretrainArgs) -> anyhow::Result<Dataset> {
         let mut exec = Vec::with_capacity(n * NUM_JOINTS);
         for i in 0..n {
             let command = command_of(&obs.actor[i * ACTOR_OBS_DIM..(i + 1) * ACTOR_OBS_DIM]);
-            let label = expert_action(command, t_s[i]);
+            let label = expert.action(command, step[i]);
             data.labels.extend_from_slice(&label);
             exec.extend(label.iter().map(|&a| {
                 let z: f32 = StandardNormal.sample(&mut rng);
@@ -135,11 +188,7 @@ fn collect(cfg: &TrainConfig, args: &PretrainArgs) -> anyhow::Result<Dataset> {
         data.heights.extend_from_slice(&obs.heights);
         let res = env.step(&exec);
         for i in 0..n {
-            t_s[i] = if res.dones[i] {
-                0.0
-            } else {
-                t_s[i] + POLICY_DT_S
-            };
+            step[i] = if res.dones[i] { 0 } else { step[i] + 1 };
         }
         rewards.extend_from_slice(&res.rewards);
         dones.extend(res.dones.iter().zip(&res.time_outs).map(|(&d, &t)| d && !t));
@@ -240,12 +289,18 @@ pub fn run(args: PretrainArgs) -> anyhow::Result<()> {
         args.batch > 0 && args.steps >= 2,
         "--batch and --steps must be positive"
     );
+    let expert = Expert::load(args.expert, &cfg)?;
     let mut ppo = Ppo::new(&cfg)?;
     eprintln!(
-        "collecting {} steps x {} robots with the scripted tripod gait",
-        args.steps, cfg.env.num_envs
+        "collecting {} steps x {} robots with the {} as the expert",
+        args.steps,
+        cfg.env.num_envs,
+        match args.expert {
+            ExpertKind::Priors => "motion priors",
+            ExpertKind::Scripted => "scripted tripod gait",
+        }
     );
-    let data = collect(&cfg, &args)?;
+    let data = collect(&cfg, &args, &expert)?;
     ppo.ac
         .update_normalizers(&data.actor, &data.history, &data.privileged, &data.heights)?;
     let mut opt = Adam::new(&ppo.params, args.learning_rate)?;

@@ -11,12 +11,14 @@
 //!
 //! Consumers: [`dataset`] loads a directory of clips and samples (s_t, s_t+1) AMP-state
 //! transitions weighted by `MotionWeight`; [`sim_tracking`] plays clips in host-sim through the CSP
-//! drives and checks that the robot stays upright and walks at the command.
+//! drives and checks that the robot stays upright and walks at the command; [`expert`] blends
+//! the clips into joint targets for any command, the expert `hexapod pretrain` clones.
 pub mod assemble;
 pub mod body;
 pub mod clip;
 pub mod command;
 pub mod dataset;
+pub mod expert;
 pub mod feet;
 pub mod frame;
 pub mod generate;

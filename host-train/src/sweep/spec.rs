@@ -27,6 +27,11 @@ pub struct SweepSpec {
     /// `KEY=VALUE` overrides for every job (as `hexapod train --set`), before the variant's.
     #[serde(default)]
     pub set: Vec<String>,
+    /// A checkpoint every job starts from (as `hexapod train --resume`), for example a
+    /// `hexapod pretrain` warm start, so all controllers share one start; none: each job
+    /// starts from a random policy.
+    #[serde(default)]
+    pub init_checkpoint: Option<String>,
     /// Variants of every preset (`[[variant]]` tables); none: each preset as it is.
     #[serde(default, rename = "variant")]
     pub variants: Vec<Variant>,
@@ -132,6 +137,8 @@ pub struct Job {
     pub dir: PathBuf,
     /// Training iterations the resolved config asks for.
     pub max_iterations: usize,
+    /// The checkpoint a fresh job starts from (the sweep's `init_checkpoint`, resolved).
+    pub init_checkpoint: Option<PathBuf>,
 }
 
 impl Job {
@@ -253,6 +260,13 @@ pub fn parse(text: &str, path: &Path) -> anyhow::Result<Sweep> {
             .clone()
             .unwrap_or_else(|| format!("runs/sweeps/{}", spec.name)),
     );
+    let init_checkpoint = match &spec.init_checkpoint {
+        Some(c) => Some(
+            crate::checkpoint::resolve_dir(&resolve_path(c))
+                .with_context(|| format!("sweep file {origin}: init_checkpoint `{c}`"))?,
+        ),
+        None => None,
+    };
     let mut jobs = Vec::new();
     let mut controllers = BTreeSet::new();
     for preset in &spec.presets {
@@ -293,6 +307,7 @@ pub fn parse(text: &str, path: &Path) -> anyhow::Result<Sweep> {
                     overrides: overrides.clone(),
                     dir: dir.join(&name),
                     max_iterations: cfg.runner.max_iterations,
+                    init_checkpoint: init_checkpoint.clone(),
                 });
             }
         }

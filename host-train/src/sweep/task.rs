@@ -65,7 +65,7 @@ pub fn state(job: &Job) -> JobState {
 }
 
 /// The `hexapod train` arguments of a job (resuming from its run directory when it has a
-/// checkpoint).
+/// checkpoint, else from the sweep's `init_checkpoint` if it names one).
 pub fn train_args(job: &Job) -> Vec<String> {
     let mut a = vec![
         "train".to_string(),
@@ -84,6 +84,9 @@ pub fn train_args(job: &Job) -> Vec<String> {
     if trained_iterations(job).is_some() {
         a.push("--resume".into());
         a.push(job.run_dir().display().to_string());
+    } else if let Some(init) = &job.init_checkpoint {
+        a.push("--resume".into());
+        a.push(init.display().to_string());
     }
     a
 }
@@ -234,5 +237,48 @@ mod tests {
         std::fs::write(job.suite_dir().join("report.json"), "{\"complete\": true}").unwrap();
         assert_eq!(state(job), JobState::Done);
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_fresh_job_starts_from_the_sweeps_init_checkpoint_and_a_started_one_from_its_own() {
+        let dir = std::env::temp_dir().join(format!("hexapod-sweep-init-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let spec = |init: &str| {
+            format!(
+                "name = \"t\"\nout_dir = \"{}\"\npresets = [\"configs/smoke.toml\"]\ninit_checkpoint = \"{init}\"\nset = [\"runner.max_iterations=2\"]\n",
+                dir.display()
+            )
+        };
+        let sweep = parse(&spec("assets/policies/flat-tripod"), Path::new("t.toml")).unwrap();
+        let job = &sweep.jobs[0];
+        let init = job.init_checkpoint.clone().unwrap();
+        assert!(
+            init.ends_with("assets/policies/flat-tripod"),
+            "{}",
+            init.display()
+        );
+        assert!(train_args(job)
+            .windows(2)
+            .any(|w| w[0] == "--resume" && w[1] == init.display().to_string()));
+
+        let ckpt = job.run_dir().join("checkpoints/model_000001");
+        std::fs::create_dir_all(&ckpt).unwrap();
+        for f in ["config.toml", "policy.safetensors"] {
+            std::fs::copy(init.join(f), ckpt.join(f)).unwrap();
+        }
+        std::fs::write(ckpt.join("state.json"), "{\"iteration\": 1}").unwrap();
+        assert!(train_args(job)
+            .windows(2)
+            .any(|w| w[0] == "--resume" && w[1] == job.run_dir().display().to_string()));
+        std::fs::remove_dir_all(&dir).unwrap();
+
+        let err = format!(
+            "{:#}",
+            parse(&spec("runs/no-such-checkpoint"), Path::new("t.toml")).unwrap_err()
+        );
+        assert!(
+            err.contains("init_checkpoint") && err.contains("no-such-checkpoint"),
+            "{err}"
+        );
     }
 }

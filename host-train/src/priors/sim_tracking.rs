@@ -10,7 +10,7 @@
 
 use super::clip::MotionClip;
 use hexapod_core::amp::{amp_state, AMP_JOINT_POS, AMP_STATE_DIM};
-use hexapod_core::robot::NUM_JOINTS;
+use hexapod_core::robot::{NUM_JOINTS, NUM_LEGS, TRIPOD_A_MASK, TRIPOD_B_MASK};
 use hexapod_core::timing::DECIMATION;
 use host_sim::frames::{rotate, rotate_inverse};
 use host_sim::reference::ReferenceState;
@@ -29,6 +29,8 @@ pub trait ReplayPlant {
     fn step(&mut self, q_target_rad: &[f32; NUM_JOINTS]);
     /// The robot's state (velocities in the world frame).
     fn state(&self) -> RobotState;
+    /// Feet in stance (bit i = leg i), by the rewards' and eval's contact-force threshold.
+    fn stance_mask(&self) -> u8;
 }
 
 impl ReplayPlant for RobotWorld {
@@ -47,6 +49,10 @@ impl ReplayPlant for RobotWorld {
 
     fn state(&self) -> RobotState {
         RobotWorld::state(self)
+    }
+
+    fn stance_mask(&self) -> u8 {
+        host_sim::rewards::stance_mask(&self.contacts().foot_force_world_n)
     }
 }
 
@@ -113,6 +119,13 @@ pub struct ReplayReport {
     pub clip_height_m: f32,
     /// RMS difference of joint positions between replay and clip at equal phase, rad.
     pub joint_rms_rad: f32,
+    /// Fraction of policy steps after the warm-up with 0..=6 feet in stance (eval's
+    /// feet-down histogram).
+    pub feet_down_fraction: [f32; 7],
+    /// Fraction of those steps whose stance set is exactly one tripod (eval's tripod score).
+    pub tripod_score: f32,
+    /// The same score by the clip's own contact flags: the most the replay can reach.
+    pub clip_tripod_score: f32,
     /// True when upright and within the velocity tolerances.
     pub passed: bool,
     /// The simulator's states at every policy step after the warm-up: the clip as the
@@ -124,7 +137,7 @@ impl ReplayReport {
     /// One line for the console.
     pub fn summary(&self) -> String {
         format!(
-            "{:<28} {} cmd ({:+.2}, {:+.2}, {:+.2}) sim ({:+.3}, {:+.3}, {:+.3})  |dv| {:.3}/{:.3} m/s  |dw| {:.3}/{:.3} rad/s  tilt {:.3} rad  height min {:.3} mean {:.3} (clip {:.3}) m  joint rms {:.3} rad",
+            "{:<28} {} cmd ({:+.2}, {:+.2}, {:+.2}) sim ({:+.3}, {:+.3}, {:+.3})  |dv| {:.3}/{:.3} m/s  |dw| {:.3}/{:.3} rad/s  tilt {:.3} rad  height min {:.3} mean {:.3} (clip {:.3}) m  joint rms {:.3} rad  tripod {:.2} (clip {:.2}), all feet down {:.2}",
             self.name,
             if self.passed { "PASS" } else { "FAIL" },
             self.command[0],
@@ -142,6 +155,9 @@ impl ReplayReport {
             self.mean_height_m,
             self.clip_height_m,
             self.joint_rms_rad,
+            self.tripod_score,
+            self.clip_tripod_score,
+            self.feet_down_fraction[NUM_LEGS],
         )
     }
 }
@@ -180,6 +196,11 @@ fn tolerance(magnitude: f32, rel: f32, zero_tol: f32) -> f32 {
     }
 }
 
+/// True when exactly one tripod is in stance.
+fn is_tripod(stance_mask: u8) -> bool {
+    stance_mask == TRIPOD_A_MASK || stance_mask == TRIPOD_B_MASK
+}
+
 /// Replays `clip` on `plant` and checks it.
 pub fn replay_clip<P: ReplayPlant>(
     plant: &mut P,
@@ -202,6 +223,8 @@ pub fn replay_clip<P: ReplayPlant>(
     let (mut sum_v, mut count) = ([0.0f32; 3], 0usize);
     let (mut max_tilt, mut min_height, mut sum_height) = (0.0f32, f32::MAX, 0.0f32);
     let (mut joint_sq, mut joint_count) = (0.0f32, 0usize);
+    let mut feet_down = [0usize; NUM_LEGS + 1];
+    let mut tripod = 0usize;
     let mut states = Vec::with_capacity((cfg.cycles - cfg.warmup_cycles.min(cfg.cycles)) * n);
     for k in 0..cfg.cycles * n {
         let (a, b) = (
@@ -226,6 +249,8 @@ pub fn replay_clip<P: ReplayPlant>(
             sum_v[2] += w[2];
             sum_height += s.base_pos_world_m[2];
             count += 1;
+            feet_down[plant.stance_mask().count_ones() as usize] += 1;
+            tripod += usize::from(is_tripod(plant.stance_mask()));
             states.push(sim_reference_state(&s));
             let reference = &clip_states[(k + 1) % n];
             for j in AMP_JOINT_POS {
@@ -262,6 +287,19 @@ pub fn replay_clip<P: ReplayPlant>(
         mean_height_m: sum_height / count.max(1) as f32,
         clip_height_m: clip_height,
         joint_rms_rad: (joint_sq / joint_count.max(1) as f32).sqrt(),
+        feet_down_fraction: feet_down.map(|c| c as f32 / count.max(1) as f32),
+        tripod_score: tripod as f32 / count.max(1) as f32,
+        clip_tripod_score: clip
+            .frames
+            .iter()
+            .filter(|f| {
+                let mask = (0..NUM_LEGS)
+                    .filter(|&l| f.contacts[l])
+                    .fold(0u8, |m, l| m | 1 << l);
+                is_tripod(mask)
+            })
+            .count() as f32
+            / n as f32,
         passed: lin_error <= lin_tol
             && yaw_error <= yaw_tol
             && max_tilt <= cfg.max_tilt_rad

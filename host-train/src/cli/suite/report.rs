@@ -418,6 +418,30 @@ impl SuiteReport {
                 );
             }
         }
+        let _ = writeln!(
+            s,
+            "\nThe gait while the command is at least {:.0} % of its amplitude: the tripod score (the fraction of samples whose stance set is exactly one tripod) and the share of samples with n feet on the ground (contact force above {} N).\n",
+            100.0 * super::sine::GAIT_MIN_COMMAND_FRACTION,
+            host_sim::rewards::STANCE_FORCE_N
+        );
+        let _ = writeln!(s, "| controller | command | tripod score | 0-2 feet | 3 feet | 4 feet | 5 feet | 6 feet |\n|---|---|---|---|---|---|---|---|");
+        for (c, rs) in &runs {
+            for r in rs.iter() {
+                let f = &r.feet_down_fraction;
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+                    c.name,
+                    r.axis,
+                    r.tripod_score,
+                    f[0] + f[1] + f[2],
+                    f[3],
+                    f[4],
+                    f[5],
+                    f[6]
+                );
+            }
+        }
         let _ = writeln!(s);
         for a in super::sine::AXES {
             self.plot_link(s, &format!("sine_{a}.png"));

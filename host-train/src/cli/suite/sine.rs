@@ -1,11 +1,13 @@
 //! Sinusoidal commands (the paper's Fig. 3): on flat ground, vx, vy and the yaw rate each
 //! follow a sine for 20 s (after 1 s standing), one command axis per run. Per run: the RMSE
-//! of the commanded axis, the mean |vz|, the roll and pitch RMS, and the traces (the mean
-//! over the trials) of commanded against measured for the plots (not in the JSON).
+//! of the commanded axis, the mean |vz|, the roll and pitch RMS, the gait (tripod score and
+//! feet-down histogram while the command is at least half its amplitude), and the traces
+//! (the mean over the trials) of commanded against measured for the plots (not in the JSON).
 
 use super::batch::{drive, heading_velocity_m_s, roll_pitch_rad, seed_trials, steps, Conditions};
 use crate::algo::ppo::Ppo;
 use crate::config::TrainConfig;
+use hexapod_core::robot::{TRIPOD_A_MASK, TRIPOD_B_MASK};
 use hexapod_core::timing::POLICY_DT_S;
 use host_sim::env::HexapodEnv;
 use serde::Serialize;
@@ -18,6 +20,8 @@ pub const DURATION_S: f32 = 20.0;
 pub const PERIOD_S: f32 = 4.0;
 /// Amplitudes: vx m/s, vy m/s, yaw rate rad/s.
 pub const AMPLITUDES: [f32; 3] = [0.3, 0.2, 0.5];
+/// The gait is measured while |command| is at least this fraction of the amplitude.
+pub const GAIT_MIN_COMMAND_FRACTION: f32 = 0.5;
 /// Names of the command axes.
 pub const AXES: [&str; 3] = ["vx", "vy", "yaw_rate"];
 
@@ -45,6 +49,11 @@ pub struct SineRun {
     pub roll_rms_deg: f64,
     /// Pitch RMS, deg.
     pub pitch_rms_deg: f64,
+    /// Fraction of the gait samples (command at least half its amplitude) whose stance set
+    /// is exactly one tripod (eval's tripod score).
+    pub tripod_score: f64,
+    /// Fraction of the gait samples with 0..=6 feet on the ground.
+    pub feet_down_fraction: [f64; 7],
     /// Time of each sample, s from the sine's start.
     #[serde(skip)]
     pub time_s: Vec<f32>,
@@ -95,6 +104,8 @@ pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions) -> anyhow::Result<V
     let mut fell = vec![false; n];
     // Per robot and sample: (commanded axis value, measured axis value, cross-axis, vz, roll, pitch).
     let mut samples: Vec<Vec<[f32; 6]>> = vec![Vec::new(); n];
+    // Per robot: the stance masks of the gait samples.
+    let mut stances: Vec<Vec<u8>> = vec![Vec::new(); n];
     drive(
         &mut env,
         ppo,
@@ -122,8 +133,12 @@ pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions) -> anyhow::Result<V
                     _ => v[0].hypot(v[1]),
                 };
                 let (roll, pitch) = roll_pitch_rad(&s);
+                let commanded = command(axis, t_of(step))[axis];
+                if commanded.abs() >= GAIT_MIN_COMMAND_FRACTION * AMPLITUDES[axis] {
+                    stances[i].push(env.foot_contact_mask(i));
+                }
                 samples[i].push([
-                    command(axis, t_of(step))[axis],
+                    commanded,
                     measured,
                     cross,
                     v[2],
@@ -157,6 +172,16 @@ pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions) -> anyhow::Result<V
                     })
                     .collect()
             };
+            let masks: Vec<u8> = robots.iter().flat_map(|&i| stances[i].iter().copied()).collect();
+            let gait_samples = masks.len().max(1) as f64;
+            let mut feet_down_fraction = [0.0f64; 7];
+            for m in &masks {
+                feet_down_fraction[m.count_ones() as usize] += 1.0 / gait_samples;
+            }
+            let tripod = masks
+                .iter()
+                .filter(|&&m| m == TRIPOD_A_MASK || m == TRIPOD_B_MASK)
+                .count();
             SineRun {
                 axis: AXES[axis].into(),
                 amplitude: AMPLITUDES[axis],
@@ -168,6 +193,8 @@ pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions) -> anyhow::Result<V
                 mean_abs_vz_m_s: all.iter().map(|s| s[3].abs() as f64).sum::<f64>() / m,
                 roll_rms_deg: rms(&|s| s[4] as f64),
                 pitch_rms_deg: rms(&|s| s[5] as f64),
+                tripod_score: tripod as f64 / gait_samples,
+                feet_down_fraction,
                 time_s: (stand..total).map(t_of).collect(),
                 commanded: (stand..total)
                     .map(|s| command(axis, t_of(s))[axis])

@@ -1,6 +1,7 @@
 //! `hexapod sweep report`: the jobs' suite reports gathered per controller over seeds: the
 //! paper's Table III (largest tolerated push, mean and spread over seeds) and the Fig. 5
-//! success matrix (successes over all seeds' trials, one column per controller), as
+//! success matrix (successes over all seeds' trials, one column per controller), the Fig. 3
+//! sinusoidal-command measures with the gait, and the Fig. 4 curriculum's final rows, as
 //! `report.json` and `report.md` in the sweep's directory.
 
 use super::spec::Sweep;
@@ -20,6 +21,35 @@ struct ControllerFile {
     iteration: Option<usize>,
     push: Option<PushFile>,
     terrain: Option<TerrainFile>,
+    #[serde(default)]
+    sine: Option<Vec<SineFile>>,
+    #[serde(default)]
+    curriculum: Option<CurriculumFile>,
+}
+#[derive(Deserialize)]
+struct SineFile {
+    axis: String,
+    trials: usize,
+    falls: usize,
+    tracking_rmse: f64,
+    cross_axis_rms: f64,
+    mean_abs_vz_m_s: f64,
+    roll_rms_deg: f64,
+    pitch_rms_deg: f64,
+    // Suite reports made before the gait was measured have neither.
+    #[serde(default)]
+    tripod_score: Option<f64>,
+    #[serde(default)]
+    feet_down_fraction: Option<[f64; 7]>,
+}
+#[derive(Deserialize)]
+struct CurriculumFile {
+    kinds: Vec<KindFile>,
+}
+#[derive(Deserialize)]
+struct KindFile {
+    kind: String,
+    final_level: f64,
 }
 #[derive(Deserialize)]
 struct PushFile {
@@ -129,6 +159,42 @@ pub struct FeatureRow {
     pub cells: Vec<Option<FeatureCell>>,
 }
 
+/// One controller on one sinusoidal-command axis (Fig. 3), over seeds.
+#[derive(Clone, Debug, Serialize)]
+pub struct SineRow {
+    /// Controller.
+    pub controller: String,
+    /// `vx`, `vy` or `yaw_rate`.
+    pub axis: String,
+    /// Tracking RMSE (m/s or rad/s).
+    pub tracking_rmse: Spread,
+    /// Cross-axis RMS, m/s.
+    pub cross_axis_rms: Spread,
+    /// Mean |vz|, m/s.
+    pub mean_abs_vz_m_s: Spread,
+    /// Roll RMS, deg.
+    pub roll_rms_deg: Spread,
+    /// Pitch RMS, deg.
+    pub pitch_rms_deg: Spread,
+    /// Falls over every seed's trials, and the trials.
+    pub falls: (usize, usize),
+    /// Tripod score (seeds whose report measured it).
+    pub tripod_score: Option<Spread>,
+    /// Feet-down histogram, the mean over those seeds.
+    pub feet_down_fraction: Option<[f64; 7]>,
+}
+
+/// One controller's final curriculum row on one tile kind (Fig. 4), over seeds.
+#[derive(Clone, Debug, Serialize)]
+pub struct CurriculumRow {
+    /// Controller.
+    pub controller: String,
+    /// Tile kind.
+    pub kind: String,
+    /// The mean terrain row of the last logged iterations.
+    pub final_level: Spread,
+}
+
 /// One controller's jobs.
 #[derive(Clone, Debug, Serialize)]
 pub struct ControllerSummary {
@@ -157,6 +223,82 @@ pub struct SweepReport {
     pub terrain: Vec<FeatureRow>,
     /// The outdoor step, one cell per controller.
     pub outdoor_step: Vec<Option<FeatureCell>>,
+    /// The sinusoidal commands and the gait (Fig. 3).
+    pub sine: Vec<SineRow>,
+    /// The curriculum's final rows (Fig. 4).
+    pub curriculum: Vec<CurriculumRow>,
+}
+
+fn sine_rows(name: &str, jobs: &[&(&super::spec::Job, ControllerFile)]) -> Vec<SineRow> {
+    let runs: Vec<&Vec<SineFile>> = jobs.iter().filter_map(|(_, c)| c.sine.as_ref()).collect();
+    let Some(first) = runs.first() else {
+        return Vec::new();
+    };
+    first
+        .iter()
+        .map(|axis| {
+            let per_seed: Vec<&SineFile> = runs
+                .iter()
+                .filter_map(|r| r.iter().find(|x| x.axis == axis.axis))
+                .collect();
+            let of =
+                |f: &dyn Fn(&SineFile) -> f64| Spread::of(per_seed.iter().map(|x| f(x)).collect());
+            let gait: Vec<(f64, [f64; 7])> = per_seed
+                .iter()
+                .filter_map(|x| Some((x.tripod_score?, x.feet_down_fraction?)))
+                .collect();
+            SineRow {
+                controller: name.to_string(),
+                axis: axis.axis.clone(),
+                tracking_rmse: of(&|x| x.tracking_rmse),
+                cross_axis_rms: of(&|x| x.cross_axis_rms),
+                mean_abs_vz_m_s: of(&|x| x.mean_abs_vz_m_s),
+                roll_rms_deg: of(&|x| x.roll_rms_deg),
+                pitch_rms_deg: of(&|x| x.pitch_rms_deg),
+                falls: (
+                    per_seed.iter().map(|x| x.falls).sum(),
+                    per_seed.iter().map(|x| x.trials).sum(),
+                ),
+                tripod_score: (!gait.is_empty())
+                    .then(|| Spread::of(gait.iter().map(|g| g.0).collect())),
+                feet_down_fraction: (!gait.is_empty()).then(|| {
+                    std::array::from_fn(|k| {
+                        gait.iter().map(|g| g.1[k]).sum::<f64>() / gait.len() as f64
+                    })
+                }),
+            }
+        })
+        .collect()
+}
+
+fn curriculum_rows(
+    name: &str,
+    jobs: &[&(&super::spec::Job, ControllerFile)],
+) -> Vec<CurriculumRow> {
+    let curves: Vec<&CurriculumFile> = jobs
+        .iter()
+        .filter_map(|(_, c)| c.curriculum.as_ref())
+        .collect();
+    let mut kinds: Vec<&str> = Vec::new();
+    for k in curves.iter().flat_map(|c| &c.kinds) {
+        if !kinds.contains(&k.kind.as_str()) {
+            kinds.push(&k.kind);
+        }
+    }
+    kinds
+        .into_iter()
+        .map(|kind| CurriculumRow {
+            controller: name.to_string(),
+            kind: kind.to_string(),
+            final_level: Spread::of(
+                curves
+                    .iter()
+                    .filter_map(|c| c.kinds.iter().find(|k| k.kind == kind))
+                    .map(|k| k.final_level)
+                    .collect(),
+            ),
+        })
+        .collect()
 }
 
 fn cell(results: &[&FeatureFile]) -> Option<FeatureCell> {
@@ -311,6 +453,11 @@ pub fn gather(sweep: &Sweep, partial: bool) -> anyhow::Result<SweepReport> {
             cell(&results)
         })
         .collect();
+    let sine = names.iter().flat_map(|n| sine_rows(n, &of(n))).collect();
+    let curriculum = names
+        .iter()
+        .flat_map(|n| curriculum_rows(n, &of(n)))
+        .collect();
     Ok(SweepReport {
         sweep: sweep.spec.name.clone(),
         spec_file: sweep.path.display().to_string(),
@@ -319,6 +466,8 @@ pub fn gather(sweep: &Sweep, partial: bool) -> anyhow::Result<SweepReport> {
         push,
         terrain,
         outdoor_step,
+        sine,
+        curriculum,
     })
 }
 
@@ -331,6 +480,14 @@ fn spread(s: &Spread, lower_bounds: usize) -> String {
             "{ge}{:.2} ± {:.2} ({:.2}-{:.2})",
             s.mean, s.sd, s.min, s.max
         )
+    }
+}
+
+fn spread3(s: &Spread) -> String {
+    if s.values.len() == 1 {
+        format!("{:.3}", s.mean)
+    } else {
+        format!("{:.3} ± {:.3} ({:.3}-{:.3})", s.mean, s.sd, s.min, s.max)
     }
 }
 
@@ -446,6 +603,61 @@ impl SweepReport {
                 let _ = writeln!(s, "| outdoor step 0.15 m | {} |", cells.join(" | "));
             }
         }
+        if !self.sine.is_empty() {
+            let _ = writeln!(
+                s,
+                "\n## Sinusoidal commands (Fig. 3)\n\nTracking RMSE in m/s (rad/s for the yaw rate); cross-axis RMS and mean |vz| in m/s; roll and pitch RMS in deg.\n"
+            );
+            let _ = writeln!(s, "| controller | command | tracking RMSE | cross-axis RMS | mean abs vz | roll RMS | pitch RMS | falls |\n|---|---|---|---|---|---|---|---|");
+            for r in &self.sine {
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {} | {} | {} | {} | {} | {}/{} |",
+                    r.controller,
+                    r.axis,
+                    spread3(&r.tracking_rmse),
+                    spread3(&r.cross_axis_rms),
+                    spread3(&r.mean_abs_vz_m_s),
+                    spread(&r.roll_rms_deg, 0),
+                    spread(&r.pitch_rms_deg, 0),
+                    r.falls.0,
+                    r.falls.1
+                );
+            }
+            if self.sine.iter().any(|r| r.tripod_score.is_some()) {
+                let _ = writeln!(s, "\n### The gait during the sinusoidal commands (command at least half its amplitude)\n\nTripod score: the fraction of samples whose stance set is exactly one tripod; then the share of samples with n feet on the ground (mean over seeds).\n");
+                let _ = writeln!(s, "| controller | command | tripod score | 0-2 feet | 3 feet | 4 feet | 5 feet | 6 feet |\n|---|---|---|---|---|---|---|---|");
+                for r in &self.sine {
+                    let (Some(t), Some(f)) = (&r.tripod_score, &r.feet_down_fraction) else {
+                        continue;
+                    };
+                    let _ = writeln!(
+                        s,
+                        "| {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+                        r.controller,
+                        r.axis,
+                        spread(t, 0),
+                        f[0] + f[1] + f[2],
+                        f[3],
+                        f[4],
+                        f[5],
+                        f[6]
+                    );
+                }
+            }
+        }
+        if !self.curriculum.is_empty() {
+            let _ = writeln!(s, "\n## Curriculum (Fig. 4): final terrain row per tile kind\n\n| controller | tile kind | final row |\n|---|---|---|");
+            for r in &self.curriculum {
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {} |",
+                    r.controller,
+                    r.kind,
+                    spread(&r.final_level, 0)
+                );
+            }
+        }
         s
     }
 
@@ -470,6 +682,11 @@ mod tests {
     use std::path::Path;
 
     fn suite_json(y_strict: f64, y_failed: Option<f64>, stairs: usize) -> String {
+        suite_json_with(y_strict, y_failed, stairs, "")
+    }
+
+    /// `extra`: more fields of the controller (a leading comma included).
+    fn suite_json_with(y_strict: f64, y_failed: Option<f64>, stairs: usize, extra: &str) -> String {
         let failed = y_failed
             .map(|f| f.to_string())
             .unwrap_or_else(|| "null".into());
@@ -478,8 +695,72 @@ mod tests {
             "push": {{"conditions": [{{"axis": "Y", "gait": "walk", "current": {{"tolerated_m_s": 3.0, "failed_m_s": 3.5}},
             "strict": {{"tolerated_m_s": {y_strict}, "failed_m_s": {failed}}}, "points": []}}]}},
             "terrain": {{"features": [{{"feature": {{}}, "name": "stairs up 0.13 m", "trials": 10, "successes": {stairs}, "falls": 1,
-            "mean_distance_m": 2.0}}], "outdoor_step": null}}}}]}}"#
+            "mean_distance_m": 2.0}}], "outdoor_step": null}}{extra}}}]}}"#
         )
+    }
+
+    fn sine_json(rmse: f64, tripod: Option<f64>, stairs_up_row: f64) -> String {
+        let gait = tripod
+            .map(|t| {
+                format!(
+                    r#", "tripod_score": {t}, "feet_down_fraction": [0, 0, 0, {t}, 0, 0, {}]"#,
+                    1.0 - t
+                )
+            })
+            .unwrap_or_default();
+        format!(
+            r#", "sine": [{{"axis": "vx", "trials": 10, "falls": 1, "tracking_rmse": {rmse}, "cross_axis_rms": 0.05,
+            "mean_abs_vz_m_s": 0.03, "roll_rms_deg": 1.0, "pitch_rms_deg": 2.0{gait}}}],
+            "curriculum": {{"kinds": [{{"kind": "StairsUp", "final_level": {stairs_up_row}, "max_level": 9.0}}]}}"#
+        )
+    }
+
+    #[test]
+    fn the_sine_runs_gait_and_curriculum_are_gathered_over_seeds() {
+        let dir = std::env::temp_dir().join(format!("hexapod-sweep-sine-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let spec = format!("name = \"r\"\nout_dir = \"{}\"\npresets = [\"configs/baseline.toml\"]\nseeds = [1, 2]\n", dir.display());
+        let sweep = parse(&spec, Path::new("r.toml")).unwrap();
+        for (i, (rmse, tripod, row)) in [(0.1, Some(0.8), 2.0), (0.2, None, 4.0)]
+            .into_iter()
+            .enumerate()
+        {
+            let job = &sweep.jobs[i];
+            let ckpt = job.run_dir().join("checkpoints/model_000007");
+            std::fs::create_dir_all(&ckpt).unwrap();
+            std::fs::write(ckpt.join("config.toml"), "").unwrap();
+            std::fs::write(ckpt.join("policy.safetensors"), "").unwrap();
+            std::fs::write(
+                ckpt.join("state.json"),
+                format!("{{\"iteration\": {}}}", job.max_iterations),
+            )
+            .unwrap();
+            std::fs::create_dir_all(job.suite_dir()).unwrap();
+            let json = suite_json_with(1.0, Some(1.1), 5, &sine_json(rmse, tripod, row));
+            std::fs::write(job.suite_dir().join("report.json"), json).unwrap();
+        }
+        let r = gather(&sweep, false).unwrap();
+        let vx = &r.sine[0];
+        assert!((vx.tracking_rmse.mean - 0.15).abs() < 1e-12);
+        assert_eq!(vx.falls, (2, 20));
+        // Only seed 1's report measured the gait.
+        assert_eq!(vx.tripod_score.as_ref().unwrap().values, [0.8]);
+        assert!((vx.feet_down_fraction.unwrap()[6] - 0.2).abs() < 1e-12);
+        assert_eq!(r.curriculum[0].final_level.mean, 3.0);
+        let md = r.markdown();
+        assert!(
+            md.contains("| baseline | vx | 0.150 ± 0.071 (0.100-0.200) |"),
+            "{md}"
+        );
+        assert!(
+            md.contains("| baseline | vx | 0.80 | 0.00 | 0.80 | 0.00 | 0.00 | 0.20 |"),
+            "{md}"
+        );
+        assert!(
+            md.contains("| baseline | StairsUp | 3.00 ± 1.41 (2.00-4.00) |"),
+            "{md}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -172,7 +172,10 @@ pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions) -> anyhow::Result<V
                     })
                     .collect()
             };
-            let masks: Vec<u8> = robots.iter().flat_map(|&i| stances[i].iter().copied()).collect();
+            let masks: Vec<u8> = robots
+                .iter()
+                .flat_map(|&i| stances[i].iter().copied())
+                .collect();
             let gait_samples = masks.len().max(1) as f64;
             let mut feet_down_fraction = [0.0f64; 7];
             for m in &masks {

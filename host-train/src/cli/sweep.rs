@@ -178,7 +178,9 @@ pub fn run(args: SweepArgs) -> anyhow::Result<()> {
         }
         SweepCommand::Report { spec, partial } => {
             let sweep = spec::load(&spec)?;
-            let r = report::gather(&sweep, partial)?;
+            let mut r = report::gather(&sweep, partial)?;
+            r.curves = crate::sweep::curves::write(&sweep)?
+                .and_then(|p| p.file_name().map(|f| f.to_string_lossy().to_string()));
             r.write(&sweep)?;
             println!("{}", r.markdown());
             eprintln!("report: {}", sweep.dir.join("report.md").display());

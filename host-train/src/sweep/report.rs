@@ -227,6 +227,8 @@ pub struct SweepReport {
     pub sine: Vec<SineRow>,
     /// The curriculum's final rows (Fig. 4).
     pub curriculum: Vec<CurriculumRow>,
+    /// The learning curves' figure, relative to the report (`curves.rs`), once drawn.
+    pub curves: Option<String>,
 }
 
 fn sine_rows(name: &str, jobs: &[&(&super::spec::Job, ControllerFile)]) -> Vec<SineRow> {
@@ -468,6 +470,7 @@ pub fn gather(sweep: &Sweep, partial: bool) -> anyhow::Result<SweepReport> {
         outdoor_step,
         sine,
         curriculum,
+        curves: None,
     })
 }
 
@@ -645,6 +648,9 @@ impl SweepReport {
                     );
                 }
             }
+        }
+        if let Some(curves) = &self.curves {
+            let _ = writeln!(s, "\n## Learning curves\n\n![{curves}]({curves})");
         }
         if !self.curriculum.is_empty() {
             let _ = writeln!(s, "\n## Curriculum (Fig. 4): final terrain row per tile kind\n\n| controller | tile kind | final row |\n|---|---|---|");

@@ -22,18 +22,21 @@ struct RunStats {
     max_drift_m: f64,
 }
 
-/// Runs `n` nominal robots at `command` for `duration_s`, measuring after `settle_s`.
-fn run(
+/// Runs `n` robots at `command` for `duration_s`, measuring after `settle_s`: nominal robots,
+/// or with the suite's randomization when `randomized`.
+fn run_robots(
     params: &MpcParams,
     command: [f32; 3],
     duration_s: f32,
     settle_s: f32,
     n: usize,
+    randomized: bool,
 ) -> (Vec<RunStats>, MpcController) {
     let mut sim = TrainConfig::default().resolved_sim();
     sim.num_envs = n;
     sim.seed = 3;
-    sim.randomization.enabled = false;
+    sim.randomization.enabled = randomized;
+    sim.randomization.friction = crate::cli::suite::batch::SUITE_FRICTION;
     sim.push.enabled = false;
     sim.observation_noise = false;
     sim.terrain = host_sim::terrain::TerrainConfig::default();
@@ -94,6 +97,37 @@ fn run(
     (stats, mpc)
 }
 
+/// [`run_robots`] with `n` nominal robots.
+fn run(
+    params: &MpcParams,
+    command: [f32; 3],
+    duration_s: f32,
+    settle_s: f32,
+    n: usize,
+) -> (Vec<RunStats>, MpcController) {
+    run_robots(params, command, duration_s, settle_s, n, false)
+}
+
+/// Tracking of eval's commands by 4 randomized robots, 6 s each (2 s settling), printed.
+/// `cargo test --release -p host-train --lib mpc::tests::commands -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn commands() {
+    let p = MpcParams::default();
+    for c in crate::cli::eval::EVAL_COMMANDS {
+        let (stats, mpc) = run_robots(&p, c, 6.0, 2.0, 4, true);
+        let falls = stats.iter().filter(|s| s.fell).count();
+        let mean = |k: usize| stats.iter().map(|s| s.mean_velocity[k]).sum::<f64>() / 4.0;
+        println!(
+            "command {c:?}: falls {falls}/4, mean vx {:.3} vy {:.3} wz {:.3}, QP failures {}",
+            mean(0),
+            mean(1),
+            mean(2),
+            mpc.qp_failures()
+        );
+    }
+}
+
 #[test]
 fn walks_forward_for_ten_seconds_at_the_command() {
     let p = MpcParams::default();
@@ -134,9 +168,10 @@ fn stands_still_at_a_zero_command_with_physical_forces() {
     assert!(last.max_cone_violation_n < 1e-6);
 }
 
-/// The defaults' tuning on flat ground: forward walking at 0.3 m/s, 6 s (2 s settling), over
-/// body height, lift height and gait period. `cargo test --release -p host-train --lib
-/// mpc::tests::tune -- --ignored --nocapture`.
+/// The defaults' tuning on flat ground: eval's six commands, 2 randomized robots each, 5 s
+/// (2 s settling), over body height, lift height and gait period; prints the mean planar
+/// velocity error, the mean yaw-rate error and the falls per setting.
+/// `cargo test --release -p host-train --lib mpc::tests::tune -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn tune() {
@@ -150,14 +185,21 @@ fn tune() {
                     gait_period_s: period,
                     ..base.clone()
                 };
-                let t = std::time::Instant::now();
-                let (stats, _) = run(&p, [0.3, 0.0, 0.0], 6.0, 2.0, 1);
-                let ms_per_step = t.elapsed().as_secs_f64() * 1e3 / 300.0;
-                let s = &stats[0];
-                let err = (s.mean_velocity[0] - 0.3).hypot(s.mean_velocity[1]);
+                let (mut lin, mut yaw, mut falls, mut runs) = (0.0, 0.0, 0, 0);
+                for c in crate::cli::eval::EVAL_COMMANDS {
+                    let (stats, _) = run_robots(&p, c, 5.0, 2.0, 2, true);
+                    for s in &stats {
+                        let v = s.mean_velocity;
+                        lin += (v[0] - c[0] as f64).hypot(v[1] - c[1] as f64);
+                        yaw += (v[2] - c[2] as f64).abs();
+                        falls += s.fell as usize;
+                        runs += 1;
+                    }
+                }
                 println!(
-                    "height {h:.2} m, lift {lift:.2} m, period {period:.1} s: fell {}, |v - v_cmd| {err:.3} m/s, vx {:.3}, max tilt {:.1} deg, {ms_per_step:.2} ms per step (physics included)",
-                    s.fell, s.mean_velocity[0], s.max_tilt_deg
+                    "height {h:.2} m, lift {lift:.2} m, period {period:.1} s: planar error {:.3} m/s, yaw-rate error {:.3} rad/s, falls {falls}/{runs}",
+                    lin / runs as f64,
+                    yaw / runs as f64
                 );
             }
         }

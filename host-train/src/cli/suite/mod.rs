@@ -408,6 +408,32 @@ mod tests {
     }
 
     #[test]
+    fn the_mpc_is_a_controller_and_its_bad_parameters_fail_before_any_report() {
+        let mut o = opts();
+        o.checkpoints.clear();
+        assert!(validate(&o)
+            .unwrap_err()
+            .to_string()
+            .contains("give at least one --checkpoint or --mpc"));
+        o.mpc = Some(None);
+        assert!(validate(&o).is_ok());
+        let out = std::env::temp_dir().join(format!("hexapod-suite-mpc-{}", std::process::id()));
+        let params = out.with_extension("toml");
+        std::fs::write(&params, "gait_period_s = 0.01\n").unwrap();
+        o.out = out.clone();
+        o.mpc = Some(Some(params.clone()));
+        let e = format!("{:#}", run(&o).unwrap_err());
+        assert!(
+            e.contains("hexapod-suite-mpc")
+                && e.contains("gait_period_s must be in [0.2, 3], got 0.01")
+                && !e.contains('\n'),
+            "{e}"
+        );
+        assert!(!out.exists());
+        std::fs::remove_file(&params).unwrap();
+    }
+
+    #[test]
     fn names_come_from_the_directory() {
         assert_eq!(
             controller_name(Path::new("assets/policies/rough-climb")),

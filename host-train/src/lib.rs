@@ -10,6 +10,7 @@ pub mod config;
 pub mod env;
 pub mod error;
 pub mod metrics;
+pub mod mpc;
 pub mod nn;
 pub mod priors;
 pub mod runner;

@@ -43,8 +43,12 @@ pub const EVAL_COMMANDS: [[f32; 3]; 6] = [
 #[derive(Args, Debug)]
 pub struct EvalArgs {
     /// Checkpoint directory (with `--suite`, repeat it to compare controllers side by side).
-    #[arg(long, required = true)]
+    #[arg(long, required_unless_present = "mpc")]
     pub checkpoint: Vec<PathBuf>,
+    /// With `--suite`: also run the model-based MPC as a controller, with its default
+    /// parameters or those of a TOML file (e.g. configs/mpc.toml).
+    #[arg(long, requires = "suite", num_args = 0..=1, value_name = "PARAMS_TOML")]
+    pub mpc: Option<Option<PathBuf>>,
     /// Robots per command.
     #[arg(long, default_value_t = 16)]
     pub num_envs: usize,
@@ -480,6 +484,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
                 .iter()
                 .map(|c| crate::checkpoint::resolve_dir(c))
                 .collect::<Result<Vec<_>, _>>()?,
+            mpc: args.mpc.clone(),
             out: args.out.clone().expect("clap requires --out with --suite"),
             protocols: args.protocol.clone(),
             quick: args.quick,

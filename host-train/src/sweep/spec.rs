@@ -190,6 +190,7 @@ impl Sweep {
         SuiteOptions {
             suite: e.suite.clone(),
             checkpoints: vec![job.run_dir()],
+            mpc: None,
             out: job.suite_dir(),
             protocols: e.protocols.clone(),
             quick: e.quick,

@@ -1,8 +1,8 @@
 //! What every protocol of the suite shares: the simulator settings it runs under (recorded
 //! in the report), the seeds that give trial k the same robot in every test, and the loop
-//! that drives a batch of robots with a policy at per-robot commands.
+//! that drives a batch of robots with a controller at per-robot commands.
 
-use crate::algo::ppo::Ppo;
+use super::controller::SuiteController;
 use crate::config::TrainConfig;
 use hexapod_core::timing::POLICY_DT_S;
 use host_sim::config::{EnvConfig, RandomizationConfig};
@@ -93,12 +93,12 @@ pub fn steps(s: f32) -> usize {
     (s / POLICY_DT_S).round() as usize
 }
 
-/// Runs `steps` policy steps. Before each step `before(step, env, commands)` may push
+/// Runs `steps` policy steps of `controller`. Before each step `before(step, env, commands)` may push
 /// robots and set each robot's command; after it `after(step, env, result)` reads the
 /// outcome (a robot whose episode ended is already reset in `env`).
 pub fn drive(
     env: &mut HexapodEnv,
-    ppo: &mut Ppo,
+    controller: &mut dyn SuiteController,
     steps: usize,
     mut before: impl FnMut(usize, &mut HexapodEnv, &mut [[f32; 3]]),
     mut after: impl FnMut(usize, &HexapodEnv, &StepResult),
@@ -106,14 +106,18 @@ pub fn drive(
     let n = env.num_envs();
     let mut commands = vec![[0.0f32; 3]; n];
     let mut obs = env.reset();
+    controller.start(env);
     for step in 0..steps {
         before(step, env, &mut commands);
         for (i, c) in commands.iter().enumerate() {
             env.set_command(i, *c);
             obs.set_command(i, *c);
         }
-        let act = ppo.act(&obs, true)?;
-        let res = env.step(&act.actions);
+        let actions = controller.act(&obs, env)?;
+        let res = env.step(&actions);
+        for (i, _) in res.dones.iter().enumerate().filter(|(_, d)| **d) {
+            controller.episode_ended(i);
+        }
         after(step, env, &res);
         obs = res.obs;
     }

@@ -3,11 +3,16 @@
 //! Table III), `terrain` (stairs and slopes, Fig. 5), `step` (the outdoor 15 cm step),
 //! `sine` (sinusoidal commands, Fig. 3), `curriculum` (terrain row over training, Fig. 4).
 //!
+//! Beside checkpoints, the model-based MPC ([`crate::mpc`], `--mpc [params.toml]`) runs as a
+//! controller of its own (under the default config's randomization; `curriculum` does not
+//! apply to it: it is not trained).
+//!
 //! Every checkpoint is loaded and checked before anything runs; the report (JSON, Markdown,
 //! PNG plots) is written to a temporary directory and moved into place only when every
 //! protocol finished for every checkpoint, so a failed run leaves no partial report.
 
 pub mod batch;
+pub mod controller;
 pub mod curriculum;
 pub mod plots;
 pub mod push;
@@ -15,11 +20,12 @@ pub mod report;
 pub mod sine;
 pub mod terrain;
 
-use crate::algo::ppo::Ppo;
 use crate::checkpoint::{load_for_inference, load_iteration};
 use crate::config::{EnvKind, TrainConfig};
+use crate::mpc::{MpcController, MpcParams};
 use anyhow::{bail, Context};
 use batch::Conditions;
+use controller::SuiteController;
 use report::{ControllerReport, SuiteReport};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -45,6 +51,9 @@ pub struct SuiteOptions {
     pub suite: String,
     /// Checkpoint directories, one controller each.
     pub checkpoints: Vec<PathBuf>,
+    /// Also run the MPC: `Some(None)` with its default parameters, `Some(Some(file))` with
+    /// parameters from a TOML file.
+    pub mpc: Option<Option<PathBuf>>,
     /// Output directory.
     pub out: PathBuf,
     /// Protocols to run (empty: all).
@@ -74,8 +83,8 @@ pub fn validate(o: &SuiteOptions) -> anyhow::Result<Vec<&'static str>> {
     if o.trials == Some(0) {
         bail!("--trials must be at least 1");
     }
-    if o.checkpoints.is_empty() {
-        bail!("give at least one --checkpoint");
+    if o.checkpoints.is_empty() && o.mpc.is_none() {
+        bail!("give at least one --checkpoint or --mpc");
     }
     Ok(PROTOCOLS
         .iter()
@@ -114,11 +123,17 @@ fn trained_on(cfg: &TrainConfig) -> String {
     }
 }
 
+/// Name of the MPC in reports.
+pub const MPC_NAME: &str = "mpc";
+
 struct Controller {
     name: String,
-    checkpoint: PathBuf,
+    /// The checkpoint directory (`None`: the MPC).
+    checkpoint: Option<PathBuf>,
+    /// What the report shows as the checkpoint.
+    source: String,
     cfg: TrainConfig,
-    ppo: Ppo,
+    policy: Box<dyn SuiteController>,
 }
 
 /// Runs the suite and writes the report into `o.out`.
@@ -151,9 +166,26 @@ pub fn run(o: &SuiteOptions) -> anyhow::Result<()> {
         }
         controllers.push(Controller {
             name,
-            checkpoint: dir.clone(),
+            checkpoint: Some(dir.clone()),
+            source: dir.display().to_string(),
             cfg,
-            ppo,
+            policy: Box::new(ppo),
+        });
+    }
+    if let Some(file) = &o.mpc {
+        let params = match file {
+            Some(f) => MpcParams::load(f)?,
+            None => MpcParams::default(),
+        };
+        controllers.push(Controller {
+            name: MPC_NAME.into(),
+            checkpoint: None,
+            source: match file {
+                Some(f) => format!("MPC, parameters {}", f.display()),
+                None => "MPC, default parameters".into(),
+            },
+            cfg: TrainConfig::default(),
+            policy: Box::new(MpcController::new(params)?),
         });
     }
     let (rounds, k) = if o.quick {
@@ -166,9 +198,12 @@ pub fn run(o: &SuiteOptions) -> anyhow::Result<()> {
         let conditions = Conditions::new(&c.cfg, o.seed, trials, o.quick);
         let mut r = ControllerReport {
             name: c.name.clone(),
-            checkpoint: c.checkpoint.display().to_string(),
-            iteration: load_iteration(&c.checkpoint).ok(),
-            trained_on: trained_on(&c.cfg),
+            checkpoint: c.source.clone(),
+            iteration: c.checkpoint.as_ref().and_then(|d| load_iteration(d).ok()),
+            trained_on: match c.checkpoint {
+                Some(_) => trained_on(&c.cfg),
+                None => "model-based, not trained".into(),
+            },
             conditions: conditions.clone(),
             push: None,
             terrain: None,
@@ -183,7 +218,13 @@ pub fn run(o: &SuiteOptions) -> anyhow::Result<()> {
         };
         if protocols.contains(&"push") {
             let t = Instant::now();
-            r.push = Some(push::run(&c.cfg, &mut c.ppo, &conditions, rounds, k)?);
+            r.push = Some(push::run(
+                &c.cfg,
+                c.policy.as_mut(),
+                &conditions,
+                rounds,
+                k,
+            )?);
             time(&mut r, "push", t);
         }
         let (with_terrain, with_step) =
@@ -192,7 +233,7 @@ pub fn run(o: &SuiteOptions) -> anyhow::Result<()> {
             let t = Instant::now();
             r.terrain = Some(terrain::run(
                 &c.cfg,
-                &mut c.ppo,
+                c.policy.as_mut(),
                 &conditions,
                 with_terrain,
                 with_step,
@@ -206,16 +247,21 @@ pub fn run(o: &SuiteOptions) -> anyhow::Result<()> {
         }
         if protocols.contains(&"sine") {
             let t = Instant::now();
-            r.sine = Some(sine::run(&c.cfg, &mut c.ppo, &conditions)?);
+            r.sine = Some(sine::run(&c.cfg, c.policy.as_mut(), &conditions)?);
             time(&mut r, "sine", t);
         }
         if protocols.contains(&"curriculum") {
-            let rows = if c.cfg.resolved_sim().terrain.tiles {
-                c.cfg.resolved_sim().terrain.rows
-            } else {
-                0
-            };
-            r.curriculum = Some(curriculum::run(&c.checkpoint, rows)?);
+            match &c.checkpoint {
+                Some(checkpoint) => {
+                    let rows = if c.cfg.resolved_sim().terrain.tiles {
+                        c.cfg.resolved_sim().terrain.rows
+                    } else {
+                        0
+                    };
+                    r.curriculum = Some(curriculum::run(checkpoint, rows)?);
+                }
+                None => eprintln!("{}: curriculum skipped (not a trained policy)", r.name),
+            }
         }
         reports.push(r);
     }
@@ -294,6 +340,7 @@ mod tests {
         SuiteOptions {
             suite: "paper".into(),
             checkpoints: vec![PathBuf::from("assets/policies/flat-tripod")],
+            mpc: None,
             out: std::env::temp_dir().join("hexapod-suite-test"),
             protocols: Vec::new(),
             quick: true,
@@ -358,6 +405,32 @@ mod tests {
         assert!(e.contains("actor.layers.0") && e.contains("200"), "{e}");
         assert!(!out.exists());
         std::fs::remove_dir_all(&ckpt).unwrap();
+    }
+
+    #[test]
+    fn the_mpc_is_a_controller_and_its_bad_parameters_fail_before_any_report() {
+        let mut o = opts();
+        o.checkpoints.clear();
+        assert!(validate(&o)
+            .unwrap_err()
+            .to_string()
+            .contains("give at least one --checkpoint or --mpc"));
+        o.mpc = Some(None);
+        assert!(validate(&o).is_ok());
+        let out = std::env::temp_dir().join(format!("hexapod-suite-mpc-{}", std::process::id()));
+        let params = out.with_extension("toml");
+        std::fs::write(&params, "gait_period_s = 0.01\n").unwrap();
+        o.out = out.clone();
+        o.mpc = Some(Some(params.clone()));
+        let e = format!("{:#}", run(&o).unwrap_err());
+        assert!(
+            e.contains("hexapod-suite-mpc")
+                && e.contains("gait_period_s must be in [0.2, 3], got 0.01")
+                && !e.contains('\n'),
+            "{e}"
+        );
+        assert!(!out.exists());
+        std::fs::remove_file(&params).unwrap();
     }
 
     #[test]

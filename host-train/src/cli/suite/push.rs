@@ -14,7 +14,7 @@
 //! each open bracket, all conditions and magnitudes in one batch of robots.
 
 use super::batch::{drive, heading_velocity_m_s, seed_trials, steps, tilt_rad, Conditions};
-use crate::algo::ppo::Ppo;
+use super::controller::SuiteController;
 use crate::config::TrainConfig;
 use host_sim::clearance::BodyShapes;
 use host_sim::env::HexapodEnv;
@@ -241,7 +241,7 @@ pub const CONDITIONS: [(Axis, Gait); 6] = [
 /// Runs the protocol: `rounds` of bisection with `k` magnitudes per bracket.
 pub fn run(
     cfg: &TrainConfig,
-    ppo: &mut Ppo,
+    controller: &mut dyn SuiteController,
     c: &Conditions,
     rounds: usize,
     k: usize,
@@ -269,7 +269,7 @@ pub fn run(
         if jobs.is_empty() {
             break;
         }
-        let outcomes = run_jobs(cfg, ppo, c, &jobs)?;
+        let outcomes = run_jobs(cfg, controller, c, &jobs)?;
         for (j, job) in jobs.iter().enumerate() {
             let robots = &outcomes[j * c.trials..(j + 1) * c.trials];
             let mut strict_failures = [0usize; 4];
@@ -327,7 +327,7 @@ pub fn run(
 /// Runs every job with `c.trials` robots each, in one batch.
 fn run_jobs(
     cfg: &TrainConfig,
-    ppo: &mut Ppo,
+    controller: &mut dyn SuiteController,
     c: &Conditions,
     jobs: &[Job],
 ) -> anyhow::Result<Vec<Outcome>> {
@@ -359,7 +359,7 @@ fn run_jobs(
     let mut history: Vec<Vec<[f32; 3]>> = vec![Vec::with_capacity(total); n];
     drive(
         &mut env,
-        ppo,
+        controller,
         total,
         |step, env, commands| {
             for i in 0..n {

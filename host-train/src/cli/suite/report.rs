@@ -99,7 +99,7 @@ impl SuiteReport {
             let it = c
                 .iteration
                 .map(|i| i.to_string())
-                .unwrap_or_else(|| "?".into());
+                .unwrap_or_else(|| "-".into());
             let _ = writeln!(
                 s,
                 "| {} | `{}` | {} | {} |",

@@ -5,7 +5,7 @@
 //! (the mean over the trials) of commanded against measured for the plots (not in the JSON).
 
 use super::batch::{drive, heading_velocity_m_s, roll_pitch_rad, seed_trials, steps, Conditions};
-use crate::algo::ppo::Ppo;
+use super::controller::SuiteController;
 use crate::config::TrainConfig;
 use hexapod_core::robot::{TRIPOD_A_MASK, TRIPOD_B_MASK};
 use hexapod_core::timing::POLICY_DT_S;
@@ -84,7 +84,11 @@ pub fn command(axis: usize, t_s: f32) -> [f32; 3] {
 }
 
 /// Runs the three axes in one batch.
-pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions) -> anyhow::Result<Vec<SineRun>> {
+pub fn run(
+    cfg: &TrainConfig,
+    controller: &mut dyn SuiteController,
+    c: &Conditions,
+) -> anyhow::Result<Vec<SineRun>> {
     let n = c.robots(AXES.len());
     let mut env = HexapodEnv::new(c.sim_config(cfg, n, STAND_S + DURATION_S))?;
     seed_trials(&mut env, c);
@@ -108,7 +112,7 @@ pub fn run(cfg: &TrainConfig, ppo: &mut Ppo, c: &Conditions) -> anyhow::Result<V
     let mut stances: Vec<Vec<u8>> = vec![Vec::new(); n];
     drive(
         &mut env,
-        ppo,
+        controller,
         total,
         // The command applied during step `step` is the one at its end time, as measured.
         |step, _, commands| {

@@ -4,7 +4,7 @@
 //! 2 m along the command, measured from the start to where the base is at the end.
 
 use super::batch::{drive, seed_trials, steps, Conditions};
-use crate::algo::ppo::Ppo;
+use super::controller::SuiteController;
 use crate::config::TrainConfig;
 use host_sim::course::{Course, Feature};
 use host_sim::env::HexapodEnv;
@@ -96,7 +96,7 @@ pub fn features(quick: bool) -> Vec<Feature> {
 /// Runs the terrain features (`terrain`) and the outdoor step (`step`) in one batch.
 pub fn run(
     cfg: &TrainConfig,
-    ppo: &mut Ppo,
+    controller: &mut dyn SuiteController,
     c: &Conditions,
     terrain: bool,
     step: bool,
@@ -126,7 +126,7 @@ pub fn run(
     let mut distance_m = vec![0.0f32; n];
     drive(
         &mut env,
-        ppo,
+        controller,
         steps(DURATION_S),
         |_, _, commands| {
             for (i, cmd) in commands.iter_mut().enumerate() {

@@ -145,6 +145,43 @@ impl Default for PolicyConfig {
     }
 }
 
+/// Which phase of RMA (Kumar et al. 2021) a policy is in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RmaPhase {
+    /// Phase 1: the actor's latent comes from the environment-factor encoder mu
+    /// (privileged state and height scan); trained by PPO (`hexapod train`).
+    Teacher,
+    /// Phase 2 done: the memory encoder was regressed onto mu's latent with the actor,
+    /// estimator and mu frozen (`hexapod rma-adapt`); the actor reads the memory latent as
+    /// deployed. Not trained further by PPO.
+    Adapted,
+}
+
+/// RMA's teacher-student structure (`[rma]`; absent: the paper's controller). The teacher's
+/// actor reads, in the slot of the memory latent, `mu(normalized privileged state,
+/// normalized height scan)` (`policy.memory_latent` numbers); adaptation then trains the
+/// memory encoder to regress it from the history, so the deployed topology stays the same.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RmaConfig {
+    /// Phase of the policy.
+    pub phase: RmaPhase,
+    /// Hidden sizes of the environment-factor encoder mu (privileged 42 + heights 187 ->
+    /// `policy.memory_latent`).
+    pub encoder_hidden: Vec<usize>,
+}
+
+impl Default for RmaConfig {
+    fn default() -> Self {
+        Self {
+            phase: RmaPhase::Teacher,
+            // RMA's environment-factor encoder.
+            encoder_hidden: vec![256, 128],
+        }
+    }
+}
+
 /// Learning-rate schedule.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -324,6 +361,10 @@ pub struct TrainConfig {
     pub amp: AmpConfig,
     /// Runner.
     pub runner: RunnerConfig,
+    /// RMA's teacher (or its adapted student); absent (not written) for every other
+    /// controller.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rma: Option<RmaConfig>,
     /// The simulator (terrain, commands, reward scales, randomization, pushes) when
     /// `env.kind = "sim"`. Its `num_envs` and `seed` are taken from `[env]`, and its
     /// `rewards.task` / `rewards.regularization` switches from `[rewards]`.
@@ -392,6 +433,13 @@ impl TrainConfig {
         sim
     }
 
+    /// Whether the actor reads mu's latent (an RMA teacher) instead of the memory encoder's.
+    pub fn rma_teacher(&self) -> bool {
+        self.rma
+            .as_ref()
+            .is_some_and(|r| r.phase == RmaPhase::Teacher)
+    }
+
     /// Whether the discriminator is trained and its reward used.
     pub fn amp_enabled(&self) -> bool {
         self.rewards.style && self.rewards.style_weight != 0.0
@@ -431,6 +479,9 @@ impl TrainConfig {
             &self.policy.privileged_encoder_hidden,
             &self.policy.terrain_encoder_hidden,
             &self.amp.discriminator_hidden,
+            self.rma
+                .as_ref()
+                .map_or(&self.amp.discriminator_hidden, |r| &r.encoder_hidden),
         ];
         if sizes.iter().any(|h| h.contains(&0)) {
             return bad("hidden sizes must be positive");

@@ -22,6 +22,9 @@ enum Command {
     Train(cli::train::TrainArgs),
     /// Warm-start a policy by cloning the scripted tripod gait (a checkpoint to resume).
     Pretrain(cli::pretrain::PretrainArgs),
+    /// RMA's adaptation phase: regress the memory encoder of a teacher (`[rma]` preset) onto
+    /// its environment-factor latent, actor and estimator frozen; writes a deployable checkpoint.
+    RmaAdapt(cli::rma_adapt::RmaAdaptArgs),
     /// Generate the motion-prior dataset by trajectory optimization, check or replay it.
     Priors(cli::priors::PriorsArgs),
     /// Run a checkpoint and write its trajectory, plots and a 3D replay.
@@ -44,6 +47,7 @@ fn main() -> std::process::ExitCode {
     let result = match cli.command {
         Command::Train(args) => cli::train::run(args),
         Command::Pretrain(args) => cli::pretrain::run(args),
+        Command::RmaAdapt(args) => cli::rma_adapt::run(args),
         Command::Priors(args) => cli::priors::run(args),
         Command::Play(args) => cli::play::run(args),
         Command::Eval(args) => cli::eval::run(args),

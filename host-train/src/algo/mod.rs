@@ -1,5 +1,7 @@
-//! The learning algorithm: rollout storage with GAE, and the PPO update.
+//! The learning algorithm: rollout storage with GAE, the PPO update, and RMA's adaptation
+//! phase.
 
 pub mod adam;
+pub mod adaptation;
 pub mod ppo;
 pub mod storage;

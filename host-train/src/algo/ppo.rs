@@ -9,7 +9,7 @@ use crate::amp::discriminator::Discriminator;
 use crate::amp::prior_source::MotionPriorSource;
 use crate::amp::transition_buffer::TransitionBuffer;
 use crate::config::{LrSchedule, TrainConfig};
-use crate::nn::actor_critic::{ActorCritic, CriticInput};
+use crate::nn::actor_critic::{ActorCritic, BatchInput};
 use candle_core::{DType, Device, Result, Tensor};
 use candle_nn::VarMap;
 use hexapod_core::amp::AMP_STATE_DIM;
@@ -286,7 +286,7 @@ impl Ppo {
     pub fn new(cfg: &TrainConfig) -> std::result::Result<Self, PpoError> {
         let device = Device::Cpu;
         let (params, stats, disc_params) = (VarMap::new(), VarMap::new(), VarMap::new());
-        let ac = ActorCritic::new(&cfg.policy, &params, &stats, DType::F32, &device)?;
+        let ac = ActorCritic::new(&cfg.policy, cfg.rma.as_ref(), &params, &stats, DType::F32, &device)?;
         let (disc, disc_opt, transitions) = if cfg.amp_enabled() {
             let d = Discriminator::new(
                 &cfg.amp.discriminator_hidden,
@@ -331,7 +331,15 @@ impl Ppo {
         )?;
         let n = actor.dims()[0];
         let history = Tensor::from_slice(&obs.history, (n, HISTORY_DIM), dev)?;
-        let out = self.ac.policy(&actor, &history)?;
+        let privileged = Tensor::from_slice(&obs.privileged, (n, PRIVILEGED_DIM), dev)?;
+        let heights = Tensor::from_slice(&obs.heights, (n, HEIGHT_SCAN_DIM), dev)?;
+        let input = BatchInput {
+            actor_obs: &actor,
+            history: &history,
+            privileged: &privileged,
+            heights: &heights,
+        };
+        let out = self.ac.acting_policy(&input)?;
         let mean = out.mean.flatten_all()?.to_vec1::<f32>()?;
         let std: Vec<f32> = self.ac.log_std.exp()?.to_vec1::<f32>()?;
         let actions: Vec<f32> = if deterministic {
@@ -347,17 +355,7 @@ impl Ppo {
         };
         let actions_t = Tensor::from_slice(&actions, (n, ACTOR_OUT), dev)?;
         let log_probs = self.ac.log_prob(&out.mean, &actions_t)?.to_vec1::<f32>()?;
-        let privileged = Tensor::from_slice(&obs.privileged, (n, PRIVILEGED_DIM), dev)?;
-        let heights = Tensor::from_slice(&obs.heights, (n, HEIGHT_SCAN_DIM), dev)?;
-        let values = self
-            .ac
-            .value(&CriticInput {
-                actor_obs: &actor,
-                history: &history,
-                privileged: &privileged,
-                heights: &heights,
-            })?
-            .to_vec1::<f32>()?;
+        let values = self.ac.value(&input)?.to_vec1::<f32>()?;
         let estimate = match out.estimate {
             Some(e) => e.flatten_all()?.to_vec1::<f32>()?,
             None => Vec::new(),
@@ -380,7 +378,7 @@ impl Ppo {
         let privileged = Tensor::from_slice(&obs.privileged, (n, PRIVILEGED_DIM), dev)?;
         let heights = Tensor::from_slice(&obs.heights, (n, HEIGHT_SCAN_DIM), dev)?;
         self.ac
-            .value(&CriticInput {
+            .value(&BatchInput {
                 actor_obs: &actor,
                 history: &history,
                 privileged: &privileged,
@@ -481,7 +479,13 @@ impl Ppo {
         iteration: usize,
     ) -> std::result::Result<UpdateStats, PpoError> {
         let p = &self.cfg.ppo;
-        let out = self.ac.policy(&mb.actor, &mb.history)?;
+        let input = BatchInput {
+            actor_obs: &mb.actor,
+            history: &mb.history,
+            privileged: &mb.privileged,
+            heights: &mb.heights,
+        };
+        let out = self.ac.acting_policy(&input)?;
         let kl = gaussian_kl(&mb.old_mean, old_log_std, &out.mean, &self.ac.log_std)?;
         if p.schedule == LrSchedule::Adaptive && kl.is_finite() {
             if kl > 2.0 * p.desired_kl {
@@ -491,12 +495,7 @@ impl Ppo {
             }
         }
         let logp = self.ac.log_prob(&out.mean, &mb.actions)?;
-        let values = self.ac.value(&CriticInput {
-            actor_obs: &mb.actor,
-            history: &mb.history,
-            privileged: &mb.privileged,
-            heights: &mb.heights,
-        })?;
+        let values = self.ac.value(&input)?;
         let (surr, vloss) = ppo_losses(
             &logp,
             &mb.old_log_probs,

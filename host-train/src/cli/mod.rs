@@ -7,6 +7,7 @@ pub mod pretrain;
 pub mod priors;
 pub mod recording;
 pub mod replay_gif;
+pub mod rma_adapt;
 #[cfg(feature = "rerun")]
 pub mod rerun_writer;
 pub mod sim2sim;

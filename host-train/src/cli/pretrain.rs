@@ -17,7 +17,7 @@ use crate::algo::ppo::Ppo;
 use crate::algo::storage::gather_rows;
 use crate::checkpoint;
 use crate::config::{EnvKind, TrainConfig};
-use crate::nn::actor_critic::CriticInput;
+use crate::nn::actor_critic::BatchInput;
 use crate::priors::dataset::MotionDataset;
 use crate::priors::expert::PriorExpert;
 use anyhow::Context;
@@ -245,11 +245,16 @@ fn epoch(
         let actor = rows(&data.actor, ACTOR_OBS_DIM, idx, &dev)?;
         let history = rows(&data.history, HISTORY_DIM, idx, &dev)?;
         let labels = rows(&data.labels, NUM_JOINTS, idx, &dev)?;
-        let out = ppo.ac.policy(&actor, &history)?;
+        let privileged = rows(&data.privileged, PRIVILEGED_DIM, idx, &dev)?;
+        let out = ppo.ac.acting_policy(&BatchInput {
+            actor_obs: &actor,
+            history: &history,
+            privileged: &privileged,
+            heights: &rows(&data.heights, HEIGHT_SCAN_DIM, idx, &dev)?,
+        })?;
         let action_loss = out.mean.sub(&labels)?.sqr()?.mean_all()?;
         let mut loss = action_loss.clone();
         if let Some(estimate) = &out.estimate {
-            let privileged = rows(&data.privileged, PRIVILEGED_DIM, idx, &dev)?;
             let target = privileged.narrow(1, PRIV_LIN_VEL.start, PRIV_LIN_VEL.len())?;
             let est = estimate.sub(&target)?.sqr()?.mean_all()?;
             sums[1] += est.to_scalar::<f32>()? as f64;
@@ -257,7 +262,7 @@ fn epoch(
         }
         // The critic takes the b-th batch of its own (shorter) row set, wrapping around.
         if let Some(vidx) = value_order.chunks_exact(batch).cycle().nth(b) {
-            let v = ppo.ac.value(&CriticInput {
+            let v = ppo.ac.value(&BatchInput {
                 actor_obs: &rows(&data.actor, ACTOR_OBS_DIM, vidx, &dev)?,
                 history: &rows(&data.history, HISTORY_DIM, vidx, &dev)?,
                 privileged: &rows(&data.privileged, PRIVILEGED_DIM, vidx, &dev)?,

@@ -1,7 +1,7 @@
 //! `hexapod train`: trains a policy from a TOML preset, with resume and overrides.
 
 use crate::amp::prior_source::load_prior_source;
-use crate::config::{EnvKind, TrainConfig};
+use crate::config::{EnvKind, RmaPhase, TrainConfig};
 use crate::env::make_env;
 use crate::runner::Runner;
 use anyhow::Context;
@@ -72,6 +72,11 @@ pub fn resolve_config(args: &TrainArgs) -> anyhow::Result<TrainConfig> {
 /// Runs `hexapod train`.
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     let cfg = resolve_config(&args)?;
+    if cfg.rma.as_ref().is_some_and(|r| r.phase == RmaPhase::Adapted) {
+        anyhow::bail!(
+            "rma.phase = \"adapted\" is what `hexapod rma-adapt` writes; train RMA's teacher with rma.phase = \"teacher\""
+        );
+    }
     if cfg.runner.num_threads > 0 {
         std::env::set_var("RAYON_NUM_THREADS", cfg.runner.num_threads.to_string());
     }
@@ -90,6 +95,8 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         let saved = crate::checkpoint::load_config(ckpt)?;
         if saved.policy != cfg.policy
             || saved.amp.discriminator_hidden != cfg.amp.discriminator_hidden
+            || saved.rma.as_ref().map(|r| &r.encoder_hidden)
+                != cfg.rma.as_ref().map(|r| &r.encoder_hidden)
         {
             anyhow::bail!(
                 "{}: the checkpoint's network shapes differ from {}",

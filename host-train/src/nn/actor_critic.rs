@@ -15,8 +15,15 @@
 //! `l^p`, `g_e` the normalized height scan (187) into `l^e`; the critic reads
 //! `concat(normalized actor_obs, l^p, l^e)`. Without privileged information ("Baseline",
 //! "Concurrent") the critic reads `concat(normalized actor_obs, normalized history)`.
+//!
+//! RMA's teacher (`[rma]`, phase `teacher`): the environment-factor encoder mu maps
+//! `concat(normalized privileged, normalized heights)` to a latent of the memory latent's
+//! size, and the actor acts on that latent instead of `h` (mu is trained end to end by PPO;
+//! the memory encoder waits, untrained, for the adaptation phase, which regresses `h` onto
+//! mu's latent). [`ActorCritic::policy`] is always the deployed path (memory latent);
+//! [`ActorCritic::acting_policy`] is the one that acts in training and evaluation.
 
-use crate::config::PolicyConfig;
+use crate::config::{PolicyConfig, RmaConfig, RmaPhase};
 use crate::nn::mlp::Mlp;
 use crate::nn::normalizer::EmpiricalNormalizer;
 use candle_core::{DType, Device, Result, Tensor};
@@ -27,8 +34,8 @@ use hexapod_core::obs::{ACTOR_OBS_DIM, HEIGHT_SCAN_DIM, HISTORY_DIM, PRIVILEGED_
 /// `0.5 * ln(2 pi)`.
 const HALF_LN_2PI: f64 = 0.918_938_533_204_672_8;
 
-/// Critic-side inputs of a batch.
-pub struct CriticInput<'a> {
+/// Raw inputs of a batch: the critic reads all four, an RMA teacher's actor too.
+pub struct BatchInput<'a> {
     /// Actor observation `[B, 63]` (raw).
     pub actor_obs: &'a Tensor,
     /// History `[B, 210]` (raw).
@@ -63,6 +70,10 @@ pub struct ActorCritic {
     pub privileged_encoder: Option<Mlp>,
     /// Terrain encoder g_e.
     pub terrain_encoder: Option<Mlp>,
+    /// RMA's environment-factor encoder mu (privileged + heights -> latent), with `[rma]`.
+    pub env_factor_encoder: Option<Mlp>,
+    /// Whether the acting actor reads mu's latent (an RMA teacher) instead of `h`.
+    pub teacher_latent: bool,
     /// Normalizer of the actor observation.
     pub norm_actor: EmpiricalNormalizer,
     /// Normalizer of the history.
@@ -74,9 +85,11 @@ pub struct ActorCritic {
 }
 
 impl ActorCritic {
-    /// Builds the networks in `params` (trainable) and the normalizers in `stats`.
+    /// Builds the networks in `params` (trainable) and the normalizers in `stats`; `rma`
+    /// adds mu (and, for a teacher, makes the actor act on its latent).
     pub fn new(
         cfg: &PolicyConfig,
+        rma: Option<&RmaConfig>,
         params: &VarMap,
         stats: &VarMap,
         dtype: DType,
@@ -128,6 +141,15 @@ impl ActorCritic {
             (None, None, ACTOR_OBS_DIM + HISTORY_DIM)
         };
         let critic = Mlp::new(critic_in, &cfg.critic_hidden, 1, vb.pp("critic"))?;
+        let env_factor_encoder = match rma {
+            Some(r) => Some(Mlp::new(
+                PRIVILEGED_DIM + HEIGHT_SCAN_DIM,
+                &r.encoder_hidden,
+                cfg.memory_latent,
+                vb.pp("env_factor_encoder"),
+            )?),
+            None => None,
+        };
         Ok(Self {
             estimator,
             memory,
@@ -136,6 +158,8 @@ impl ActorCritic {
             critic,
             privileged_encoder,
             terrain_encoder,
+            teacher_latent: rma.is_some_and(|r| r.phase == RmaPhase::Teacher),
+            env_factor_encoder,
             norm_actor: EmpiricalNormalizer::new(stats, "actor_obs", ACTOR_OBS_DIM, device)?,
             norm_history: EmpiricalNormalizer::new(stats, "history", HISTORY_DIM, device)?,
             norm_privileged: EmpiricalNormalizer::new(stats, "privileged", PRIVILEGED_DIM, device)?,
@@ -148,20 +172,64 @@ impl ActorCritic {
         ACTOR_OBS_DIM + if cfg.use_estimator { ESTIMATOR_OUT } else { 0 } + cfg.memory_latent
     }
 
-    /// Actor side: action mean and velocity estimate from raw `actor_obs [B,63]`, `history [B,210]`.
+    /// The deployed actor side: action mean and velocity estimate from raw
+    /// `actor_obs [B,63]`, `history [B,210]` (the memory encoder's latent).
     pub fn policy(&self, actor_obs: &Tensor, history: &Tensor) -> Result<PolicyOutput> {
-        let a = self.norm_actor.normalize(actor_obs)?;
         let h = self.norm_history.normalize(history)?;
         let latent = self.memory.forward(&h)?;
+        self.actor_on_latent(actor_obs, &h, &latent)
+    }
+
+    /// The actor side that acts (rollouts, evaluation): for an RMA teacher the actor on
+    /// mu's latent, otherwise [`ActorCritic::policy`].
+    pub fn acting_policy(&self, x: &BatchInput) -> Result<PolicyOutput> {
+        if !self.teacher_latent {
+            return self.policy(x.actor_obs, x.history);
+        }
+        let latent = self.env_factor_latent(x.privileged, x.heights)?;
+        let h = self.norm_history.normalize(x.history)?;
+        self.actor_on_latent(x.actor_obs, &h, &latent)
+    }
+
+    /// mu's latent `[B, memory_latent]` from raw `privileged [B,42]`, `heights [B,187]`.
+    ///
+    /// # Panics
+    /// Without `[rma]` (no mu built): a caller's bug, [`ActorCritic::acting_policy`]
+    /// calls it only for a teacher.
+    pub fn env_factor_latent(&self, privileged: &Tensor, heights: &Tensor) -> Result<Tensor> {
+        let mu = self
+            .env_factor_encoder
+            .as_ref()
+            .expect("the environment-factor encoder exists with [rma]");
+        let p = self.norm_privileged.normalize(privileged)?;
+        let e = self.norm_heights.normalize(heights)?;
+        mu.forward(&Tensor::cat(&[&p, &e], 1)?)
+    }
+
+    /// The memory encoder's latent `[B, memory_latent]` from the raw history.
+    pub fn memory_latent(&self, history: &Tensor) -> Result<Tensor> {
+        self.memory
+            .forward(&self.norm_history.normalize(history)?)
+    }
+
+    /// The low-level actor (and the estimator) on raw `actor_obs`, the *normalized*
+    /// history `h` and a latent.
+    pub fn actor_on_latent(
+        &self,
+        actor_obs: &Tensor,
+        h: &Tensor,
+        latent: &Tensor,
+    ) -> Result<PolicyOutput> {
+        let a = self.norm_actor.normalize(actor_obs)?;
         let (input, estimate) = match &self.estimator {
             Some(est) => {
-                let v_hat = est.forward(&h)?;
+                let v_hat = est.forward(h)?;
                 (
-                    Tensor::cat(&[&a, &v_hat.detach(), &latent], 1)?,
+                    Tensor::cat(&[&a, &v_hat.detach(), latent], 1)?,
                     Some(v_hat),
                 )
             }
-            None => (Tensor::cat(&[&a, &latent], 1)?, None),
+            None => (Tensor::cat(&[&a, latent], 1)?, None),
         };
         Ok(PolicyOutput {
             mean: self.actor.forward(&input)?,
@@ -170,7 +238,7 @@ impl ActorCritic {
     }
 
     /// Critic side: values `[B]`.
-    pub fn value(&self, x: &CriticInput) -> Result<Tensor> {
+    pub fn value(&self, x: &BatchInput) -> Result<Tensor> {
         let a = self.norm_actor.normalize(x.actor_obs)?;
         let input = match (&self.privileged_encoder, &self.terrain_encoder) {
             (Some(gp), Some(ge)) => {
@@ -227,7 +295,7 @@ mod tests {
     fn paper_shapes_and_keys() {
         let (params, stats) = (VarMap::new(), VarMap::new());
         let cfg = PolicyConfig::default();
-        let ac = ActorCritic::new(&cfg, &params, &stats, DType::F32, &Device::Cpu).unwrap();
+        let ac = ActorCritic::new(&cfg, None, &params, &stats, DType::F32, &Device::Cpu).unwrap();
         let data = params.data().lock().unwrap();
         let shape = |k: &str| data.get(k).unwrap_or_else(|| panic!("{k}")).dims().to_vec();
         assert_eq!(shape("actor.layers.0.weight"), vec![256, 63 + 3 + 16]);
@@ -252,6 +320,55 @@ mod tests {
             .contains_key("normalizer.history.mean"));
     }
 
+    /// The acting actor of an RMA teacher: output from mu's latent, which moves with the
+    /// privileged input and not with the history (without the estimator, whose `v_hat` is
+    /// the history's other way in); the deployed path still reads the memory's latent.
+    #[test]
+    fn an_rma_teachers_actor_acts_on_mu() {
+        let dev = Device::Cpu;
+        let (params, stats) = (VarMap::new(), VarMap::new());
+        let cfg = PolicyConfig {
+            use_estimator: false,
+            ..Default::default()
+        };
+        let rma = RmaConfig::default();
+        let ac = ActorCritic::new(&cfg, Some(&rma), &params, &stats, DType::F32, &dev).unwrap();
+        assert!(ac.teacher_latent);
+        let w = |k: &str| params.data().lock().unwrap()[k].dims().to_vec();
+        assert_eq!(w("env_factor_encoder.layers.0.weight"), vec![256, 42 + 187]);
+        assert_eq!(w("env_factor_encoder.layers.2.weight"), vec![16, 128]);
+        let ramp = |n: usize, dim: usize, k: f32| {
+            let v: Vec<f32> = (0..n * dim).map(|i| (i as f32 * k).sin()).collect();
+            Tensor::from_vec(v, (n, dim), &dev).unwrap()
+        };
+        let (obs, heights) = (ramp(2, 63, 0.3), ramp(2, 187, 0.05));
+        let (hist_a, hist_b) = (ramp(2, 210, 0.7), ramp(2, 210, 1.9));
+        let (priv_a, priv_b) = (ramp(2, 42, 0.4), ramp(2, 42, 1.3));
+        let mean = |history: &Tensor, privileged: &Tensor| {
+            ac.acting_policy(&BatchInput {
+                actor_obs: &obs,
+                history,
+                privileged,
+                heights: &heights,
+            })
+            .unwrap()
+            .mean
+            .to_vec2::<f32>()
+            .unwrap()
+        };
+        assert_eq!(mean(&hist_a, &priv_a), mean(&hist_b, &priv_a));
+        assert_ne!(mean(&hist_a, &priv_a), mean(&hist_a, &priv_b));
+        let deployed = |history: &Tensor| {
+            ac.policy(&obs, history)
+                .unwrap()
+                .mean
+                .to_vec2::<f32>()
+                .unwrap()
+        };
+        assert_ne!(deployed(&hist_a), deployed(&hist_b));
+        assert_ne!(deployed(&hist_a), mean(&hist_a, &priv_a));
+    }
+
     #[test]
     fn log_prob_and_entropy_match_the_gaussian_formula() {
         let (params, stats) = (VarMap::new(), VarMap::new());
@@ -259,7 +376,7 @@ mod tests {
             init_noise_std: 0.5,
             ..Default::default()
         };
-        let ac = ActorCritic::new(&cfg, &params, &stats, DType::F32, &Device::Cpu).unwrap();
+        let ac = ActorCritic::new(&cfg, None, &params, &stats, DType::F32, &Device::Cpu).unwrap();
         let mean = Tensor::zeros((1, 18), DType::F32, &Device::Cpu).unwrap();
         let act = Tensor::ones((1, 18), DType::F32, &Device::Cpu).unwrap();
         let lp = ac.log_prob(&mean, &act).unwrap().to_vec1::<f32>().unwrap()[0] as f64;

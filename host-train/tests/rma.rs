@@ -4,12 +4,12 @@
 //! networks (estimator, memory, actor).
 
 use candle_core::Tensor;
+use hexapod_core::obs::{ACTOR_OBS_DIM, HISTORY_DIM};
 use host_train::algo::adaptation::{Adaptation, AdaptationConfig};
 use host_train::checkpoint;
 use host_train::config::{EnvKind, PriorKind, RmaConfig, RmaPhase, TrainConfig};
 use host_train::env::make_env;
 use host_train::runner::Runner;
-use hexapod_core::obs::{ACTOR_OBS_DIM, HISTORY_DIM};
 
 fn teacher_config() -> TrainConfig {
     let mut c = TrainConfig::default();
@@ -38,7 +38,14 @@ fn weights(map: &candle_nn::VarMap, prefix: &str) -> Vec<Vec<f32>> {
     let mut keys: Vec<&String> = data.keys().filter(|k| k.starts_with(prefix)).collect();
     keys.sort();
     keys.iter()
-        .map(|k| data[*k].as_tensor().flatten_all().unwrap().to_vec1().unwrap())
+        .map(|k| {
+            data[*k]
+                .as_tensor()
+                .flatten_all()
+                .unwrap()
+                .to_vec1()
+                .unwrap()
+        })
         .collect()
 }
 
@@ -47,7 +54,8 @@ fn a_teacher_trains_mu_then_adapts_into_a_deployable_checkpoint() {
     let cfg = teacher_config();
     let dir = std::env::temp_dir().join(format!("hexapod-rma-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let mut runner = Runner::new(&cfg, make_env(&cfg).unwrap(), None, &dir.join("teacher")).unwrap();
+    let mut runner =
+        Runner::new(&cfg, make_env(&cfg).unwrap(), None, &dir.join("teacher")).unwrap();
     let (mu0, memory0) = (
         weights(&runner.ppo.params, "env_factor_encoder."),
         weights(&runner.ppo.params, "memory."),
@@ -55,8 +63,16 @@ fn a_teacher_trains_mu_then_adapts_into_a_deployable_checkpoint() {
     for _ in 0..2 {
         runner.iterate().unwrap();
     }
-    assert_ne!(weights(&runner.ppo.params, "env_factor_encoder."), mu0, "PPO trains mu");
-    assert_eq!(weights(&runner.ppo.params, "memory."), memory0, "the memory waits");
+    assert_ne!(
+        weights(&runner.ppo.params, "env_factor_encoder."),
+        mu0,
+        "PPO trains mu"
+    );
+    assert_eq!(
+        weights(&runner.ppo.params, "memory."),
+        memory0,
+        "the memory waits"
+    );
     let teacher_dir = runner.save().unwrap();
     let (_, teacher) = checkpoint::load_for_inference(&teacher_dir).unwrap();
     assert!(teacher.ac.teacher_latent);
@@ -105,7 +121,13 @@ fn a_teacher_trains_mu_then_adapts_into_a_deployable_checkpoint() {
             .try_into()
             .unwrap();
         let t = reference.trace(&a, &h);
-        for (x, y) in t.actor.last().unwrap().iter().zip(&want[i * 18..(i + 1) * 18]) {
+        for (x, y) in t
+            .actor
+            .last()
+            .unwrap()
+            .iter()
+            .zip(&want[i * 18..(i + 1) * 18])
+        {
             assert!((x - y).abs() < 1e-5, "robot {i}: codegen {x} vs candle {y}");
         }
     }

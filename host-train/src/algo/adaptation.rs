@@ -179,7 +179,9 @@ impl Adaptation {
             )));
         }
         if !(cfg.learning_rate > 0.0) {
-            return Err(AdaptError::Invalid("the learning rate must be positive".into()));
+            return Err(AdaptError::Invalid(
+                "the learning rate must be positive".into(),
+            ));
         }
         let opt = Adam::new(&memory_vars(&ppo.params), cfg.learning_rate)?;
         let obs = env.reset();
@@ -425,7 +427,12 @@ mod tests {
             .iter()
             .filter(|(k, _)| k.starts_with(prefix))
             .map(|(k, v)| {
-                let x = v.as_tensor().flatten_all().unwrap().to_vec1::<f32>().unwrap();
+                let x = v
+                    .as_tensor()
+                    .flatten_all()
+                    .unwrap()
+                    .to_vec1::<f32>()
+                    .unwrap();
                 (k.clone(), x)
             })
             .collect();
@@ -497,7 +504,10 @@ mod tests {
             .err()
             .unwrap()
             .to_string();
-        assert!(err.contains("not an RMA teacher") && err.contains("no [rma]"), "{err}");
+        assert!(
+            err.contains("not an RMA teacher") && err.contains("no [rma]"),
+            "{err}"
+        );
         assert_eq!(teacher_share(0, 4), 1.0);
         assert_eq!(teacher_share(3, 4), 0.25);
         assert_eq!(teacher_share(9, 4), 0.0);

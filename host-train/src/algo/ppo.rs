@@ -286,7 +286,14 @@ impl Ppo {
     pub fn new(cfg: &TrainConfig) -> std::result::Result<Self, PpoError> {
         let device = Device::Cpu;
         let (params, stats, disc_params) = (VarMap::new(), VarMap::new(), VarMap::new());
-        let ac = ActorCritic::new(&cfg.policy, cfg.rma.as_ref(), &params, &stats, DType::F32, &device)?;
+        let ac = ActorCritic::new(
+            &cfg.policy,
+            cfg.rma.as_ref(),
+            &params,
+            &stats,
+            DType::F32,
+            &device,
+        )?;
         let (disc, disc_opt, transitions) = if cfg.amp_enabled() {
             let d = Discriminator::new(
                 &cfg.amp.discriminator_hidden,

@@ -7,9 +7,9 @@ pub mod pretrain;
 pub mod priors;
 pub mod recording;
 pub mod replay_gif;
-pub mod rma_adapt;
 #[cfg(feature = "rerun")]
 pub mod rerun_writer;
+pub mod rma_adapt;
 pub mod sim2sim;
 pub mod suite;
 pub mod sweep;

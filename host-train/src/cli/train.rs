@@ -72,7 +72,11 @@ pub fn resolve_config(args: &TrainArgs) -> anyhow::Result<TrainConfig> {
 /// Runs `hexapod train`.
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     let cfg = resolve_config(&args)?;
-    if cfg.rma.as_ref().is_some_and(|r| r.phase == RmaPhase::Adapted) {
+    if cfg
+        .rma
+        .as_ref()
+        .is_some_and(|r| r.phase == RmaPhase::Adapted)
+    {
         anyhow::bail!(
             "rma.phase = \"adapted\" is what `hexapod rma-adapt` writes; train RMA's teacher with rma.phase = \"teacher\""
         );

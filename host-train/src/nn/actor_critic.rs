@@ -208,8 +208,7 @@ impl ActorCritic {
 
     /// The memory encoder's latent `[B, memory_latent]` from the raw history.
     pub fn memory_latent(&self, history: &Tensor) -> Result<Tensor> {
-        self.memory
-            .forward(&self.norm_history.normalize(history)?)
+        self.memory.forward(&self.norm_history.normalize(history)?)
     }
 
     /// The low-level actor (and the estimator) on raw `actor_obs`, the *normalized*
@@ -224,10 +223,7 @@ impl ActorCritic {
         let (input, estimate) = match &self.estimator {
             Some(est) => {
                 let v_hat = est.forward(h)?;
-                (
-                    Tensor::cat(&[&a, &v_hat.detach(), latent], 1)?,
-                    Some(v_hat),
-                )
+                (Tensor::cat(&[&a, &v_hat.detach(), latent], 1)?, Some(v_hat))
             }
             None => (Tensor::cat(&[&a, latent], 1)?, None),
         };

@@ -139,6 +139,9 @@ pub struct Job {
     pub max_iterations: usize,
     /// The checkpoint a fresh job starts from (the sweep's `init_checkpoint`, resolved).
     pub init_checkpoint: Option<PathBuf>,
+    /// Whether the preset trains an RMA teacher (`[rma]`), which `hexapod rma-adapt` turns
+    /// into the deployed student before the suite evaluates it.
+    pub rma_teacher: bool,
 }
 
 impl Job {
@@ -146,6 +149,21 @@ impl Job {
     /// the suite names the controller after the job.
     pub fn run_dir(&self) -> PathBuf {
         self.dir.clone()
+    }
+
+    /// Where an RMA teacher's adapted student is written: `<dir>/<name>-adapted`.
+    pub fn adapted_dir(&self) -> PathBuf {
+        self.dir.join(format!("{}-adapted", self.name()))
+    }
+
+    /// The checkpoint the suite evaluates: the adapted student for an RMA teacher (what
+    /// deploys), the training run otherwise.
+    pub fn evaluated_checkpoint(&self) -> PathBuf {
+        if self.rma_teacher {
+            self.adapted_dir()
+        } else {
+            self.run_dir()
+        }
     }
 
     /// The suite report's directory.
@@ -309,6 +327,7 @@ pub fn parse(text: &str, path: &Path) -> anyhow::Result<Sweep> {
                     dir: dir.join(&name),
                     max_iterations: cfg.runner.max_iterations,
                     init_checkpoint: init_checkpoint.clone(),
+                    rma_teacher: cfg.rma_teacher(),
                 });
             }
         }

@@ -1,5 +1,6 @@
 //! One job of a sweep, start to finish: train (resuming from the run's latest checkpoint when
-//! one exists), then evaluate with the suite. A job's progress is read off its files, so a job
+//! one exists), adapt an RMA teacher into its deployed student (`hexapod rma-adapt`), then
+//! evaluate with the suite. A job's progress is read off its files, so a job
 //! interrupted anywhere (a time limit, a preempted node, Ctrl-C) continues where it stopped
 //! when the sweep runs again, and a finished job is never run twice.
 //!
@@ -19,7 +20,8 @@ pub enum JobState {
     Pending,
     /// Trained up to this iteration, short of the config's.
     Training(usize),
-    /// Trained, not yet evaluated (or its report is incomplete).
+    /// Trained (and, for an RMA teacher, adapted), not yet evaluated (or its report is
+    /// incomplete).
     Trained,
     /// Trained and evaluated: its suite report is complete.
     Done,
@@ -52,6 +54,14 @@ pub fn evaluated(job: &Job) -> bool {
         .ok()
         .and_then(|v| v.get("complete")?.as_bool())
         .unwrap_or(false)
+}
+
+/// Whether an RMA teacher's student is written: `rma-adapt` writes its `adaptation.csv`
+/// after the checkpoint, so the file marks a finished adaptation.
+pub fn adapted(job: &Job) -> bool {
+    job.adapted_dir()
+        .join(crate::cli::rma_adapt::ADAPTATION_CSV)
+        .is_file()
 }
 
 /// Where `job` stands, read off its files.
@@ -99,7 +109,7 @@ pub fn suite_args(sweep: &Sweep, job: &Job) -> Vec<String> {
         "--suite".into(),
         o.suite,
         "--checkpoint".into(),
-        job.run_dir().display().to_string(),
+        job.evaluated_checkpoint().display().to_string(),
         "--out".into(),
         o.out.display().to_string(),
         "--seed".into(),
@@ -117,6 +127,19 @@ pub fn suite_args(sweep: &Sweep, job: &Job) -> Vec<String> {
         a.push(t.to_string());
     }
     a
+}
+
+/// The `hexapod rma-adapt` arguments of an RMA teacher's job (the job's seed).
+pub fn adapt_args(job: &Job) -> Vec<String> {
+    vec![
+        "rma-adapt".to_string(),
+        "--teacher".into(),
+        job.run_dir().display().to_string(),
+        "--out".into(),
+        job.adapted_dir().display().to_string(),
+        "--seed".into(),
+        job.seed.to_string(),
+    ]
 }
 
 /// This binary, to run the job's steps with.
@@ -147,7 +170,8 @@ fn run_step(exe: &Path, args: &[String], what: &str, job: &Job) -> anyhow::Resul
     Ok(())
 }
 
-/// Runs what is left of `job`: training to its last iteration, then the suite.
+/// Runs what is left of `job`: training to its last iteration, the adaptation of an RMA
+/// teacher, then the suite.
 pub fn run(sweep: &Sweep, job: &Job, exe: &Path) -> anyhow::Result<()> {
     std::fs::create_dir_all(&job.dir).with_context(|| format!("creating {}", job.dir.display()))?;
     if !matches!(state(job), JobState::Trained | JobState::Done) {
@@ -156,6 +180,9 @@ pub fn run(sweep: &Sweep, job: &Job, exe: &Path) -> anyhow::Result<()> {
         if reached < job.max_iterations {
             bail!("job {}: training stopped at iteration {reached} of {}; run the sweep again to resume", job.name(), job.max_iterations);
         }
+    }
+    if job.rma_teacher && !adapted(job) {
+        run_step(exe, &adapt_args(job), "the RMA adaptation", job)?;
     }
     if state(job) != JobState::Done {
         run_step(exe, &suite_args(sweep, job), "the suite", job)?;
@@ -280,5 +307,40 @@ mod tests {
             err.contains("init_checkpoint") && err.contains("no-such-checkpoint"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn an_rma_job_is_adapted_before_the_suite_evaluates_its_student() {
+        let dir = std::env::temp_dir().join(format!("hexapod-sweep-rma-{}", std::process::id()));
+        let spec = format!(
+            "name = \"t\"\nout_dir = \"{}\"\npresets = [\"configs/rma.toml\", \"configs/baseline.toml\"]\nseeds = [4]\n",
+            dir.display()
+        );
+        let sweep = parse(&spec, Path::new("t.toml")).unwrap();
+        let (rma, baseline) = (&sweep.jobs[0], &sweep.jobs[1]);
+        assert!(rma.rma_teacher && !baseline.rma_teacher);
+        let student = rma.dir.join("rma-s4-adapted");
+        assert_eq!(rma.evaluated_checkpoint(), student);
+        assert_eq!(baseline.evaluated_checkpoint(), baseline.run_dir());
+        let a = adapt_args(rma);
+        assert!(a
+            .windows(2)
+            .any(|w| w[0] == "--teacher" && w[1] == rma.run_dir().display().to_string()));
+        assert!(a
+            .windows(2)
+            .any(|w| w[0] == "--out" && w[1] == student.display().to_string()));
+        assert!(a.windows(2).any(|w| w[0] == "--seed" && w[1] == "4"));
+        assert!(suite_args(&sweep, rma)
+            .windows(2)
+            .any(|w| w[0] == "--checkpoint" && w[1] == student.display().to_string()));
+        assert!(!adapted(rma));
+        std::fs::create_dir_all(&student).unwrap();
+        std::fs::write(
+            student.join(crate::cli::rma_adapt::ADAPTATION_CSV),
+            "iteration\n",
+        )
+        .unwrap();
+        assert!(adapted(rma));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

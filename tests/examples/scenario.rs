@@ -10,14 +10,13 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use sil_tests::scenario::Scenario;
-use sil_tests::sil::Sil;
 
 fn main() -> Result<()> {
     let mut args = std::env::args().skip(1);
     let path = PathBuf::from(args.next().context("usage: scenario FILE.toml [OUT_DIR]")?);
     let out = PathBuf::from(args.next().unwrap_or_else(|| "target/sil-scenario".into()));
     let scenario = Scenario::load(&path)?;
-    let mut sil = Sil::new(scenario.seed)?;
+    let mut sil = scenario.rig()?;
     sil.h.rig.record();
     let wall = Instant::now();
     let result = scenario.run_on(sil);
@@ -40,6 +39,14 @@ fn main() -> Result<()> {
         "ok: {sim_s:.1} s simulated in {elapsed_s:.2} s ({:.0}x real time), final mode {:?}",
         sim_s / elapsed_s,
         sil.mode()
+    );
+    let p = sil.plant();
+    let [x, y, _] = p.state().base_pos_world_m;
+    println!(
+        "the base came {:.2} m along +x; the ground under it went from {:.2} m to {:.2} m",
+        p.progress_m(),
+        p.ground.height_at_m(p.start_pos_m[0], p.start_pos_m[1]),
+        p.ground.height_at_m(x, y)
     );
     println!("-> {} and {}", log_path.display(), csv_path.display());
     Ok(())

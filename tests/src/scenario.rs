@@ -17,11 +17,17 @@
 //! mode = "SafeHold { fault: BusOff { bus: 0 } }"
 //! min_height_m = 0.25
 //! ```
+//!
+//! A `[ground]` table puts the robot at the start of a lane of host-sim's evaluation course
+//! instead of on flat ground (`kind` and its size as in `host_sim::course::Feature`, e.g.
+//! `kind = "stairs_up"`, `step_height_m = 0.13`, or `kind = "slope_down"`, `slope_deg = 20`):
+//! level ground, then the feature 1 m ahead of the base, the robot facing it.
 
 use std::path::Path;
 
 use hexapod_core::controller::ZeroPolicy;
 use hexapod_core::supervisor::Mode;
+use host_sim::course::Feature;
 use serde::Deserialize;
 
 use crate::gait_policy::GaitPolicy;
@@ -40,6 +46,9 @@ pub struct Scenario {
     pub description: String,
     /// Seed of every random source of the rig.
     pub seed: u64,
+    /// The ground: a feature of the evaluation course (absent: flat ground).
+    #[serde(default)]
+    pub ground: Option<Feature>,
     /// The steps, in order.
     pub step: Vec<Step>,
 }
@@ -148,12 +157,16 @@ pub enum Step {
         /// The supervisor mode's debug form starts with this.
         #[serde(default)]
         mode: Option<String>,
-        /// Base height at least this now, m.
+        /// Base height above the ground under it at least this now, m.
         #[serde(default)]
         min_height_m: Option<f32>,
-        /// Base height at most this now, m.
+        /// Base height above the ground under it at most this now, m.
         #[serde(default)]
         max_height_m: Option<f32>,
+        /// The base has come at least this far along +x (the start's heading) since the
+        /// start, m.
+        #[serde(default)]
+        min_progress_m: Option<f32>,
         /// Joints with torque now.
         #[serde(default)]
         powered_joints: Option<usize>,
@@ -218,7 +231,15 @@ impl Scenario {
 
     /// Runs the scenario on a new rig; the rig is returned for further checks.
     pub fn run(&self) -> Result<Sil, ScenarioError> {
-        self.run_on(Sil::new(self.seed)?)
+        self.run_on(self.rig()?)
+    }
+
+    /// A new rig for the scenario: its ground, its seed.
+    pub fn rig(&self) -> Result<Sil, PlantError> {
+        match self.ground {
+            None => Sil::new(self.seed),
+            Some(feature) => Sil::before(feature, self.seed),
+        }
     }
 
     /// Runs the scenario on `sil` (built with [`Scenario::seed`], e.g. recording traffic).
@@ -307,6 +328,7 @@ fn apply(sil: &mut Sil, policies: &mut Policies, step: &Step) -> Result<(), Stri
             ref mode,
             min_height_m,
             max_height_m,
+            min_progress_m,
             powered_joints,
             trunk_clear,
             max_sink_speed_m_s,
@@ -314,7 +336,7 @@ fn apply(sil: &mut Sil, policies: &mut Policies, step: &Step) -> Result<(), Stri
         } => expect(
             sil,
             mode.as_deref(),
-            [min_height_m, max_height_m],
+            [min_height_m, max_height_m, min_progress_m],
             powered_joints,
             trunk_clear,
             [max_sink_speed_m_s, max_tilt_rad],
@@ -347,7 +369,7 @@ fn run_until(
 fn expect(
     sil: &Sil,
     mode: Option<&str>,
-    [min_height_m, max_height_m]: [Option<f32>; 2],
+    [min_height_m, max_height_m, min_progress_m]: [Option<f32>; 3],
     powered_joints: Option<usize>,
     trunk_clear: bool,
     [max_sink_speed_m_s, max_tilt_rad]: [Option<f32>; 2],
@@ -358,9 +380,13 @@ fn expect(
             return Err(format!("mode {actual}, expected {m}"));
         }
     }
-    let z = sil.plant().state().base_pos_world_m[2];
+    let z = sil.plant().height_above_ground_m();
     if min_height_m.is_some_and(|min| z < min) || max_height_m.is_some_and(|max| z > max) {
-        return Err(format!("base height {z} m"));
+        return Err(format!("base height {z} m above the ground"));
+    }
+    let progress = sil.plant().progress_m();
+    if min_progress_m.is_some_and(|min| progress < min) {
+        return Err(format!("came {progress:.2} m along the course"));
     }
     let powered = sil.plant().powered_joints();
     if powered_joints.is_some_and(|n| n != powered) {

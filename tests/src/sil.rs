@@ -10,6 +10,7 @@ use hexapod_core::supervisor::Mode;
 use hexapod_core::timing::POLICY_DT_S;
 
 use crate::sim_plant::{PlantError, SimPlant};
+use host_sim::course::{Course, Feature};
 
 /// The generated fixed-point policy as the control step runs it.
 pub type GeneratedPolicy = NnPolicy<'static, { hexapod_policy::SCRATCH_WORDS }>;
@@ -38,13 +39,28 @@ impl Sil {
     /// The robot sitting on flat ground, drives powered on, controller not started;
     /// `seed` drives every random source (bus loss dice, IMU noise).
     pub fn new(seed: u64) -> Result<Self, PlantError> {
+        Ok(Self::with_plant(SimPlant::sitting()?, seed))
+    }
+
+    /// The robot sitting at the start of one lane of host-sim's evaluation course: level
+    /// ground, then `feature` (stairs, a ramp) 1 m ahead of the base, as the paper suite
+    /// walks it.
+    pub fn before(feature: Feature, seed: u64) -> Result<Self, PlantError> {
+        let course = Course::new(&[feature]);
+        let start = course.start_pose(0);
+        let plant = SimPlant::sitting_on(course.terrain().clone(), start.position_m)?;
+        Ok(Self::with_plant(plant, seed))
+    }
+
+    /// A rig over `plant`, drives powered on, controller not started.
+    pub fn with_plant(plant: SimPlant, seed: u64) -> Self {
         let config = ControllerConfig::default();
-        let h = Harness::new(SimPlant::sitting()?, config, seed);
-        Ok(Self {
+        let h = Harness::new(plant, config, seed);
+        Self {
             h,
             config,
             stood_up_at_s: None,
-        })
+        }
     }
 
     /// The supervisor's mode.

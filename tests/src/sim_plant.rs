@@ -5,7 +5,8 @@
 //! the emulated drives hold at that moment; a drive that is not in Operation enabled (or
 //! quick stop) applies no torque. The drives read back the simulated joint positions,
 //! velocities and torques for their TPDOs, and the IMU model reads the simulated base
-//! motion (see [`crate::base_motion`]).
+//! motion (see [`crate::base_motion`]). The ground is host-sim's terrain: flat, or a lane of
+//! its evaluation course (stairs, a ramp) as the paper suite walks them.
 
 use hal_mock::base::BaseState;
 use hal_mock::plant::{CspSetpoint, JointPlant, JointState};
@@ -37,6 +38,10 @@ pub enum PlantError {
 pub struct SimPlant {
     /// The simulated robot.
     pub world: RobotWorld,
+    /// The ground the robot stands on (the world's collider was made from it).
+    pub ground: Terrain,
+    /// Where the base started, world frame, m.
+    pub start_pos_m: [f32; 3],
     setpoints: [Option<CspSetpoint>; NUM_JOINTS],
     state: RobotState,
     contacts: ContactState,
@@ -49,23 +54,28 @@ pub struct SimPlant {
 impl SimPlant {
     /// The robot on flat ground in the sitting pose, feet just touching the ground.
     pub fn sitting() -> Result<Self, PlantError> {
-        let model = UrdfModel::load(&default_urdf_path())?;
-        let ground = Terrain::generate(&TerrainConfig::default()).collider();
-        let mut world = RobotWorld::new(&model, ground, SOLVER_ITERATIONS)?;
-        world.reset(
-            [0.0, 0.0, sitting_height_m()],
-            [0.0, 0.0, 0.0, 1.0],
-            &Q_SIT_RAD,
-        );
-        Ok(Self::over(world))
+        Self::sitting_on(Terrain::generate(&TerrainConfig::default()), [0.0, 0.0])
     }
 
-    /// A plant over `world` as it is now, all drives off.
-    pub fn over(world: RobotWorld) -> Self {
+    /// The robot sitting on `ground` with its base over `xy_m` (world, m), facing +x, feet
+    /// just touching the ground there (which must be level under the feet, as a course's
+    /// start is).
+    pub fn sitting_on(ground: Terrain, xy_m: [f32; 2]) -> Result<Self, PlantError> {
+        let model = UrdfModel::load(&default_urdf_path())?;
+        let mut world = RobotWorld::new(&model, ground.collider(), SOLVER_ITERATIONS)?;
+        let z_m = ground.height_at_m(xy_m[0], xy_m[1]) + sitting_height_m();
+        world.reset([xy_m[0], xy_m[1], z_m], [0.0, 0.0, 0.0, 1.0], &Q_SIT_RAD);
+        Ok(Self::over(world, ground))
+    }
+
+    /// A plant over `world` (built on `ground`) as it is now, all drives off.
+    pub fn over(world: RobotWorld, ground: Terrain) -> Self {
         let state = world.state();
         let contacts = world.contacts();
         Self {
             world,
+            ground,
+            start_pos_m: state.base_pos_world_m,
             setpoints: [None; NUM_JOINTS],
             state,
             contacts,
@@ -83,6 +93,17 @@ impl SimPlant {
     /// The robot's state after the last step.
     pub fn state(&self) -> &RobotState {
         &self.state
+    }
+
+    /// Base height above the ground under it, m.
+    pub fn height_above_ground_m(&self) -> f32 {
+        let [x, y, z] = self.state.base_pos_world_m;
+        z - self.ground.height_at_m(x, y)
+    }
+
+    /// How far the base has come along +x (the start's heading) since the start, m.
+    pub fn progress_m(&self) -> f32 {
+        self.state.base_pos_world_m[0] - self.start_pos_m[0]
     }
 
     /// Ground contacts after the last step.

@@ -178,7 +178,7 @@ impl Adaptation {
                 cfg.mini_batches
             )));
         }
-        if !(cfg.learning_rate > 0.0) {
+        if cfg.learning_rate.is_nan() || cfg.learning_rate <= 0.0 {
             return Err(AdaptError::Invalid(
                 "the learning rate must be positive".into(),
             ));

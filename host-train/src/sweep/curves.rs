@@ -34,6 +34,12 @@ fn style_fraction(job: &Job) -> Option<f64> {
         .then(|| 1.0 / (cfg.rewards.style_weight as f64 * POLICY_DT_S as f64))
 }
 
+/// 1 where the job trains a discriminator; none without (its logged output is a placeholder 0).
+fn with_discriminator(job: &Job) -> Option<f64> {
+    let cfg = job_config(&job.preset, &job.overrides, job.seed).ok()?;
+    cfg.amp_enabled().then_some(1.0)
+}
+
 const CURVES: [Curve; 4] = [
     Curve {
         column: "tracking/lin_vel_error_m_s",
@@ -51,7 +57,7 @@ const CURVES: [Curve; 4] = [
         column: "amp/d_policy",
         title: "discriminator on the policy (prior: +1, policy: -1)",
         y_label: "mean output",
-        scale: unit,
+        scale: with_discriminator,
     },
     Curve {
         column: "episode/terrain_level",

@@ -46,7 +46,7 @@ pub struct EvalArgs {
     #[arg(long, required_unless_present = "mpc")]
     pub checkpoint: Vec<PathBuf>,
     /// With `--suite`: also run the model-based MPC as a controller, with its default
-    /// parameters or those of a TOML file (e.g. configs/mpc.toml).
+    /// parameters or those of a TOML file (e.g. configs/mpc/default.toml).
     #[arg(long, requires = "suite", num_args = 0..=1, value_name = "PARAMS_TOML")]
     pub mpc: Option<Option<PathBuf>>,
     /// Robots per command.

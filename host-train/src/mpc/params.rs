@@ -1,4 +1,4 @@
-//! Parameters of the model-based controller, settable from a TOML file (`configs/mpc.toml`;
+//! Parameters of the model-based controller, settable from a TOML file (`configs/mpc/default.toml`;
 //! every key optional, unknown keys refused). Body height, lift height and gait period are the
 //! three the paper tuned on its MPC; the defaults come from a short measured tuning on flat
 //! ground (ARCHITECTURE.md, "Model-based MPC").

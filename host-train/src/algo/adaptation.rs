@@ -303,13 +303,7 @@ impl Adaptation {
                     (idx.len(), self.latent_dim),
                     &dev,
                 )?;
-                let loss = self
-                    .ppo
-                    .ac
-                    .memory_latent(&history)?
-                    .sub(&target)?
-                    .sqr()?
-                    .mean_all()?;
+                let loss = self.latent_loss(&history, &target)?;
                 let value = loss.to_scalar::<f32>()? as f64;
                 if !value.is_finite() {
                     return Err(AdaptError::NonFiniteLoss(self.iteration));
@@ -333,14 +327,19 @@ impl Adaptation {
         let privileged = Tensor::from_slice(&obs.privileged, (n, PRIVILEGED_DIM), dev)?;
         let heights = Tensor::from_slice(&obs.heights, (n, HEIGHT_SCAN_DIM), dev)?;
         let target = self.ppo.ac.env_factor_latent(&privileged, &heights)?;
-        let mse = self
-            .ppo
-            .ac
-            .memory_latent(&history)?
-            .sub(&target)?
-            .sqr()?
-            .mean_all()?;
+        let mse = self.latent_loss(&history, &target)?;
         Ok(mse.to_scalar::<f32>()? as f64)
+    }
+
+    /// The regression loss: mean squared error of the memory's latent on raw `history`
+    /// against `target` (mu's latent).
+    fn latent_loss(&self, history: &Tensor, target: &Tensor) -> Result<Tensor> {
+        self.ppo
+            .ac
+            .memory_latent(history)?
+            .sub(target)?
+            .sqr()?
+            .mean_all()
     }
 
     /// The current observations of the environment's robots.

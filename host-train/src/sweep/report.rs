@@ -687,6 +687,22 @@ mod tests {
     use crate::sweep::spec::parse;
     use std::path::Path;
 
+    /// A job trained to its last iteration (an empty checkpoint) with `json` as its suite
+    /// report.
+    fn write_finished_job(job: &crate::sweep::spec::Job, json: &str) {
+        let ckpt = job.run_dir().join("checkpoints/model_000007");
+        std::fs::create_dir_all(&ckpt).unwrap();
+        std::fs::write(ckpt.join("config.toml"), "").unwrap();
+        std::fs::write(ckpt.join("policy.safetensors"), "").unwrap();
+        std::fs::write(
+            ckpt.join("state.json"),
+            format!("{{\"iteration\": {}}}", job.max_iterations),
+        )
+        .unwrap();
+        std::fs::create_dir_all(job.suite_dir()).unwrap();
+        std::fs::write(job.suite_dir().join("report.json"), json).unwrap();
+    }
+
     fn suite_json(y_strict: f64, y_failed: Option<f64>, stairs: usize) -> String {
         suite_json_with(y_strict, y_failed, stairs, "")
     }
@@ -731,19 +747,8 @@ mod tests {
             .into_iter()
             .enumerate()
         {
-            let job = &sweep.jobs[i];
-            let ckpt = job.run_dir().join("checkpoints/model_000007");
-            std::fs::create_dir_all(&ckpt).unwrap();
-            std::fs::write(ckpt.join("config.toml"), "").unwrap();
-            std::fs::write(ckpt.join("policy.safetensors"), "").unwrap();
-            std::fs::write(
-                ckpt.join("state.json"),
-                format!("{{\"iteration\": {}}}", job.max_iterations),
-            )
-            .unwrap();
-            std::fs::create_dir_all(job.suite_dir()).unwrap();
             let json = suite_json_with(1.0, Some(1.1), 5, &sine_json(rmse, tripod, row));
-            std::fs::write(job.suite_dir().join("report.json"), json).unwrap();
+            write_finished_job(&sweep.jobs[i], &json);
         }
         let r = gather(&sweep, false).unwrap();
         let vx = &r.sine[0];
@@ -775,20 +780,7 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
         let spec = format!("name = \"r\"\nout_dir = \"{}\"\npresets = [\"configs/baseline.toml\", \"configs/concurrent.toml\"]\nseeds = [1, 2]\n", dir.display());
         let sweep = parse(&spec, Path::new("r.toml")).unwrap();
-        let write = |i: usize, json: String| {
-            let job = &sweep.jobs[i];
-            let ckpt = job.run_dir().join("checkpoints/model_000007");
-            std::fs::create_dir_all(&ckpt).unwrap();
-            std::fs::write(ckpt.join("config.toml"), "").unwrap();
-            std::fs::write(ckpt.join("policy.safetensors"), "").unwrap();
-            std::fs::write(
-                ckpt.join("state.json"),
-                format!("{{\"iteration\": {}}}", job.max_iterations),
-            )
-            .unwrap();
-            std::fs::create_dir_all(job.suite_dir()).unwrap();
-            std::fs::write(job.suite_dir().join("report.json"), json).unwrap();
-        };
+        let write = |i: usize, json: String| write_finished_job(&sweep.jobs[i], &json);
         write(0, suite_json(1.0, Some(1.1), 6));
         write(1, suite_json(2.0, None, 9));
         write(2, suite_json(0.5, Some(0.6), 1));

@@ -265,6 +265,27 @@ pub fn load(dir: &Path, ppo: &mut Ppo, with_optimizer: bool) -> Result<(), Check
     Ok(())
 }
 
+/// Whether a checkpoint saved with `saved` has the networks `cfg` builds (policy,
+/// discriminator and RMA encoder shapes); the error says which differ.
+pub fn same_networks(saved: &TrainConfig, cfg: &TrainConfig) -> Result<(), String> {
+    let mut differ = Vec::new();
+    if saved.policy != cfg.policy {
+        differ.push("[policy]");
+    }
+    if saved.amp.discriminator_hidden != cfg.amp.discriminator_hidden {
+        differ.push("amp.discriminator_hidden");
+    }
+    if saved.rma.as_ref().map(|r| &r.encoder_hidden) != cfg.rma.as_ref().map(|r| &r.encoder_hidden)
+    {
+        differ.push("the RMA encoder ([rma])");
+    }
+    if differ.is_empty() {
+        Ok(())
+    } else {
+        Err(format!("the networks differ: {}", differ.join(", ")))
+    }
+}
+
 /// Builds the learner a checkpoint's config describes and loads its weights (no optimizer).
 pub fn load_for_inference(dir: &Path) -> Result<(TrainConfig, Ppo), CheckpointError> {
     let cfg = load_config(dir)?;

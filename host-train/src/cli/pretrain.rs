@@ -70,6 +70,10 @@ pub struct PretrainArgs {
     /// scripted tripod gait.
     #[arg(long, value_enum, default_value_t = ExpertKind::Priors)]
     pub expert: ExpertKind,
+    /// Override any config key, as `hexapod train --set` (for example
+    /// `--set sim.terrain.tiles=false` to clone on flat ground a preset that trains on tiles).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub overrides: Vec<String>,
 }
 
 /// Which gait `hexapod pretrain` clones.
@@ -283,7 +287,7 @@ fn epoch(
 
 /// Runs `hexapod pretrain`.
 pub fn run(args: PretrainArgs) -> anyhow::Result<()> {
-    let cfg = TrainConfig::load(&args.config)?;
+    let cfg = TrainConfig::load_with_overrides(&args.config, &args.overrides)?;
     cfg.validate()?;
     anyhow::ensure!(
         cfg.env.kind == EnvKind::Sim,

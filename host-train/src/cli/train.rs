@@ -97,13 +97,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     if let Some(ckpt) = &args.resume {
         let ckpt = &crate::checkpoint::resolve_dir(ckpt)?;
         let saved = crate::checkpoint::load_config(ckpt)?;
-        if saved.policy != cfg.policy
-            || saved.amp.discriminator_hidden != cfg.amp.discriminator_hidden
-            || saved.rma.as_ref().map(|r| &r.encoder_hidden)
-                != cfg.rma.as_ref().map(|r| &r.encoder_hidden)
-        {
+        if let Err(e) = crate::checkpoint::same_networks(&saved, &cfg) {
             anyhow::bail!(
-                "{}: the checkpoint's network shapes differ from {}",
+                "{}: the checkpoint's network shapes differ from {}: {e}",
                 ckpt.display(),
                 args.config.display()
             );

@@ -204,6 +204,15 @@ pub struct ControllerSummary {
     pub seeds: Vec<u64>,
     /// Training iterations of those jobs' policies.
     pub iterations: Vec<Option<usize>>,
+    /// For a reference controller (`[[reference]]`, not trained by the sweep): its suite report.
+    pub reference: Option<String>,
+}
+
+/// One reported run: a sweep job's or a reference's suite report.
+struct Entry {
+    controller: String,
+    seed: Option<u64>,
+    file: ControllerFile,
 }
 
 /// The gathered report.
@@ -231,8 +240,8 @@ pub struct SweepReport {
     pub curves: Option<String>,
 }
 
-fn sine_rows(name: &str, jobs: &[&(&super::spec::Job, ControllerFile)]) -> Vec<SineRow> {
-    let runs: Vec<&Vec<SineFile>> = jobs.iter().filter_map(|(_, c)| c.sine.as_ref()).collect();
+fn sine_rows(name: &str, jobs: &[&Entry]) -> Vec<SineRow> {
+    let runs: Vec<&Vec<SineFile>> = jobs.iter().filter_map(|e| e.file.sine.as_ref()).collect();
     let Some(first) = runs.first() else {
         return Vec::new();
     };
@@ -273,13 +282,10 @@ fn sine_rows(name: &str, jobs: &[&(&super::spec::Job, ControllerFile)]) -> Vec<S
         .collect()
 }
 
-fn curriculum_rows(
-    name: &str,
-    jobs: &[&(&super::spec::Job, ControllerFile)],
-) -> Vec<CurriculumRow> {
+fn curriculum_rows(name: &str, jobs: &[&Entry]) -> Vec<CurriculumRow> {
     let curves: Vec<&CurriculumFile> = jobs
         .iter()
-        .filter_map(|(_, c)| c.curriculum.as_ref())
+        .filter_map(|e| e.file.curriculum.as_ref())
         .collect();
     let mut kinds: Vec<&str> = Vec::new();
     for k in curves.iter().flat_map(|c| &c.kinds) {
@@ -321,30 +327,34 @@ fn cell(results: &[&FeatureFile]) -> Option<FeatureCell> {
     })
 }
 
-/// Reads every job's suite report. Unfinished jobs are an error naming them, unless
-/// `partial` (then they are listed in the report as missing).
+/// The first controller of a complete suite report.
+fn read_suite_report(path: &std::path::Path) -> anyhow::Result<ControllerFile> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let file: SuiteFile = serde_json::from_str(&text)
+        .map_err(|e| anyhow::anyhow!("{}: not a suite report: {e}", path.display()))?;
+    file.controllers
+        .into_iter()
+        .next()
+        .filter(|_| file.complete)
+        .with_context(|| format!("{}: an incomplete suite report", path.display()))
+}
+
+/// Reads every job's suite report, then the references'. Unfinished jobs are an error
+/// naming them, unless `partial` (then they are listed in the report as missing).
 pub fn gather(sweep: &Sweep, partial: bool) -> anyhow::Result<SweepReport> {
     let mut missing = Vec::new();
-    let mut done: Vec<(&super::spec::Job, ControllerFile)> = Vec::new();
+    let mut done: Vec<Entry> = Vec::new();
     for job in &sweep.jobs {
         if !evaluated(job) {
             missing.push(format!("{} ({})", job.name(), state(job)));
             continue;
         }
-        let path = job.suite_dir().join("report.json");
-        let text = std::fs::read_to_string(&path)
-            .with_context(|| format!("reading {}", path.display()))?;
-        let file: SuiteFile = serde_json::from_str(&text)
-            .map_err(|e| anyhow::anyhow!("{}: not a suite report: {e}", path.display()))?;
-        let Some(c) = file
-            .controllers
-            .into_iter()
-            .next()
-            .filter(|_| file.complete)
-        else {
-            bail!("{}: an incomplete suite report", path.display());
-        };
-        done.push((job, c));
+        done.push(Entry {
+            controller: job.controller.clone(),
+            seed: Some(job.seed),
+            file: read_suite_report(&job.suite_dir().join("report.json"))?,
+        });
     }
     if done.is_empty() {
         bail!(
@@ -364,31 +374,43 @@ pub fn gather(sweep: &Sweep, partial: bool) -> anyhow::Result<SweepReport> {
             missing.join(", ")
         );
     }
-    let names = sweep.controllers();
-    let of = |name: &str| -> Vec<&(&super::spec::Job, ControllerFile)> {
-        done.iter().filter(|(j, _)| j.controller == name).collect()
-    };
+    let mut names = sweep.controllers();
+    for r in &sweep.references {
+        done.push(Entry {
+            controller: r.name.clone(),
+            seed: None,
+            file: read_suite_report(&r.report)
+                .with_context(|| format!("the reference controller `{}`", r.name))?,
+        });
+        names.push(r.name.clone());
+    }
+    let of = |name: &str| -> Vec<&Entry> { done.iter().filter(|e| e.controller == name).collect() };
     let controllers = names
         .iter()
         .map(|n| ControllerSummary {
             name: n.clone(),
-            seeds: of(n).iter().map(|(j, _)| j.seed).collect(),
-            iterations: of(n).iter().map(|(_, c)| c.iteration).collect(),
+            seeds: of(n).iter().filter_map(|e| e.seed).collect(),
+            iterations: of(n).iter().map(|e| e.file.iteration).collect(),
+            reference: sweep
+                .references
+                .iter()
+                .find(|r| &r.name == n)
+                .map(|r| r.report.display().to_string()),
         })
         .collect();
 
     let mut push = Vec::new();
     for name in &names {
         let jobs = of(name);
-        let Some(first) = jobs.iter().find_map(|(_, c)| c.push.as_ref()) else {
+        let Some(first) = jobs.iter().find_map(|e| e.file.push.as_ref()) else {
             continue;
         };
         for rule in ["strict", "current"] {
             for cond in &first.conditions {
                 let mut values = Vec::new();
                 let mut lower_bounds = 0;
-                for (_, c) in &jobs {
-                    let hit = c.push.as_ref().and_then(|p| {
+                for e in &jobs {
+                    let hit = e.file.push.as_ref().and_then(|p| {
                         p.conditions
                             .iter()
                             .find(|k| k.axis == cond.axis && k.gait == cond.gait)
@@ -416,8 +438,8 @@ pub fn gather(sweep: &Sweep, partial: bool) -> anyhow::Result<SweepReport> {
     }
 
     let mut features: Vec<String> = Vec::new();
-    for (_, c) in &done {
-        for f in c.terrain.iter().flat_map(|t| &t.features) {
+    for e in &done {
+        for f in e.file.terrain.iter().flat_map(|t| &t.features) {
             if !features.contains(&f.name) {
                 features.push(f.name.clone());
             }
@@ -432,8 +454,9 @@ pub fn gather(sweep: &Sweep, partial: bool) -> anyhow::Result<SweepReport> {
                 .map(|n| {
                     let results: Vec<&FeatureFile> = of(n)
                         .iter()
-                        .filter_map(|(_, c)| {
-                            c.terrain
+                        .filter_map(|e| {
+                            e.file
+                                .terrain
                                 .as_ref()?
                                 .features
                                 .iter()
@@ -450,7 +473,7 @@ pub fn gather(sweep: &Sweep, partial: bool) -> anyhow::Result<SweepReport> {
         .map(|n| {
             let results: Vec<&FeatureFile> = of(n)
                 .iter()
-                .filter_map(|(_, c)| c.terrain.as_ref()?.outdoor_step.as_ref())
+                .filter_map(|e| e.file.terrain.as_ref()?.outdoor_step.as_ref())
                 .collect();
             cell(&results)
         })
@@ -530,6 +553,14 @@ impl SweepReport {
             "| controller | seeds | training iterations |\n|---|---|---|"
         );
         for c in &self.controllers {
+            if let Some(report) = &c.reference {
+                let _ = writeln!(
+                    s,
+                    "| {} | one run, not trained by the sweep: `{report}` | - |",
+                    c.name
+                );
+                continue;
+            }
             let seeds: Vec<String> = c.seeds.iter().map(|x| x.to_string()).collect();
             let its: Vec<String> = c
                 .iterations
@@ -819,6 +850,56 @@ mod tests {
         );
         r.write(&sweep).unwrap();
         assert!(dir.join("report.md").is_file() && dir.join("report.json").is_file());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_reference_controller_is_reported_beside_the_trained_ones() {
+        let dir = std::env::temp_dir().join(format!("hexapod-sweep-ref-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let reference = dir.join("mpc-report.json");
+        std::fs::write(&reference, suite_json(0.7, Some(0.8), 3)).unwrap();
+        let spec = |report: &str| {
+            format!(
+                "name = \"r\"\nout_dir = \"{}\"\npresets = [\"configs/baseline.toml\"]\nseeds = [1]\n[[reference]]\nname = \"mpc\"\nreport = \"{report}\"\n",
+                dir.display()
+            )
+        };
+        let sweep = parse(&spec(&reference.display().to_string()), Path::new("r.toml")).unwrap();
+        write_finished_job(&sweep.jobs[0], &suite_json(1.0, Some(1.1), 6));
+        let r = gather(&sweep, false).unwrap();
+        assert_eq!(r.controllers.len(), 2);
+        assert_eq!(r.controllers[1].name, "mpc");
+        assert!(r.controllers[1].seeds.is_empty());
+        assert_eq!(r.terrain[0].cells[1].as_ref().unwrap().successes, 3);
+        let md = r.markdown();
+        assert!(md.contains("| mpc | 0.70 | 3.00 |"), "{md}");
+        assert!(
+            md.contains("| mpc | one run, not trained by the sweep:"),
+            "{md}"
+        );
+
+        std::fs::write(&reference, "{\"complete\": false, \"controllers\": []}").unwrap();
+        let e = format!("{:#}", gather(&sweep, false).unwrap_err());
+        assert!(
+            e.contains("reference controller `mpc`") && e.contains("incomplete"),
+            "{e}"
+        );
+        let e = format!(
+            "{:#}",
+            parse(&spec("no/such/report.json"), Path::new("r.toml")).unwrap_err()
+        );
+        assert!(e.contains("reference `mpc`: no suite report"), "{e}");
+        let e = format!(
+            "{:#}",
+            parse(
+                &spec(&reference.display().to_string()).replace("\"mpc\"", "\"baseline\""),
+                Path::new("r.toml")
+            )
+            .unwrap_err()
+        );
+        assert!(e.contains("reference `baseline`"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -28,19 +28,53 @@ pub struct SweepSpec {
     #[serde(default)]
     pub set: Vec<String>,
     /// A checkpoint every job starts from (as `hexapod train --resume`), for example a
-    /// `hexapod pretrain` warm start, so all controllers share one start; none: each job
-    /// starts from a random policy.
+    /// `hexapod pretrain` warm start, so all controllers share one start; or a table from
+    /// preset file stem to checkpoint, when the presets' networks differ (each controller's
+    /// own warm start); none: each job starts from a random policy.
     #[serde(default)]
-    pub init_checkpoint: Option<String>,
+    pub init_checkpoint: Option<InitCheckpoint>,
     /// Variants of every preset (`[[variant]]` tables); none: each preset as it is.
     #[serde(default, rename = "variant")]
     pub variants: Vec<Variant>,
+    /// Controllers the sweep does not train, reported beside its own from a committed suite
+    /// report (`[[reference]]` tables), for example the model-based MPC.
+    #[serde(default, rename = "reference")]
+    pub references: Vec<ReferenceSpec>,
     /// What the suite measures after training.
     #[serde(default)]
     pub eval: EvalSpec,
     /// Resources of each Slurm array task.
     #[serde(default)]
     pub slurm: SlurmSpec,
+}
+
+/// The warm start of a sweep's jobs.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum InitCheckpoint {
+    /// One checkpoint for every job.
+    All(String),
+    /// One checkpoint per preset, keyed by the preset's file stem.
+    PerPreset(std::collections::BTreeMap<String, String>),
+}
+
+/// A reference controller: its name in the report and its suite report (`report.json`).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReferenceSpec {
+    /// Column name in the report.
+    pub name: String,
+    /// Its `hexapod eval --suite` report, `report.json`.
+    pub report: String,
+}
+
+/// A reference controller, resolved.
+#[derive(Clone, Debug)]
+pub struct Reference {
+    /// Column name in the report.
+    pub name: String,
+    /// Its suite report.
+    pub report: PathBuf,
 }
 
 /// One variant: a name and its overrides.
@@ -188,6 +222,8 @@ pub struct Sweep {
     pub dir: PathBuf,
     /// Presets x variants x seeds, in that order.
     pub jobs: Vec<Job>,
+    /// Reference controllers, reported after the sweep's own.
+    pub references: Vec<Reference>,
 }
 
 impl Sweep {
@@ -222,6 +258,14 @@ fn valid_name(s: &str) -> bool {
     !s.is_empty()
         && s.chars()
             .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_' || c == '.')
+}
+
+/// A preset's file stem (its controller's name).
+fn preset_stem(preset: &str) -> String {
+    Path::new(preset)
+        .file_stem()
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_else(|| preset.to_string())
 }
 
 /// Reads and checks a sweep file; every job's config is resolved (preset, its `base` chain,
@@ -279,13 +323,12 @@ pub fn parse(text: &str, path: &Path) -> anyhow::Result<Sweep> {
             .clone()
             .unwrap_or_else(|| format!("runs/sweeps/{}", spec.name)),
     );
-    let init_checkpoint = match &spec.init_checkpoint {
-        Some(c) => Some(
-            crate::checkpoint::resolve_dir(&resolve_path(c))
-                .with_context(|| format!("sweep file {origin}: init_checkpoint `{c}`"))?,
-        ),
-        None => None,
-    };
+    if let Some(InitCheckpoint::PerPreset(table)) = &spec.init_checkpoint {
+        let stems: Vec<String> = spec.presets.iter().map(|p| preset_stem(p)).collect();
+        if let Some(key) = table.keys().find(|k| !stems.contains(k)) {
+            bail!("sweep file {origin}: init_checkpoint names `{key}`, which is none of the presets ({})", stems.join(", "));
+        }
+    }
     let mut jobs = Vec::new();
     let mut controllers = BTreeSet::new();
     for preset in &spec.presets {
@@ -293,10 +336,21 @@ pub fn parse(text: &str, path: &Path) -> anyhow::Result<Sweep> {
         if !file.is_file() {
             bail!("sweep file {origin}: preset `{preset}` not found (relative paths are from the working directory or the workspace root)");
         }
-        let stem = file
-            .file_stem()
-            .map(|s| s.to_string_lossy().to_string())
-            .unwrap_or_else(|| preset.clone());
+        let stem = preset_stem(preset);
+        let init = match &spec.init_checkpoint {
+            None => None,
+            Some(InitCheckpoint::All(c)) => Some(c),
+            Some(InitCheckpoint::PerPreset(table)) => Some(table.get(&stem).with_context(|| {
+                format!("sweep file {origin}: init_checkpoint has no checkpoint for the preset `{stem}`")
+            })?),
+        };
+        let init_checkpoint = match init {
+            Some(c) => Some(
+                crate::checkpoint::resolve_dir(&resolve_path(c))
+                    .with_context(|| format!("sweep file {origin}: init_checkpoint `{c}`"))?,
+            ),
+            None => None,
+        };
         let variants: Vec<Option<&Variant>> = if spec.variants.is_empty() {
             vec![None]
         } else {
@@ -318,6 +372,15 @@ pub fn parse(text: &str, path: &Path) -> anyhow::Result<Sweep> {
                 let name = format!("{controller}-s{seed}");
                 let cfg = job_config(&file, &overrides, seed)
                     .with_context(|| format!("sweep file {origin}: job {name}"))?;
+                if let Some(init) = &init_checkpoint {
+                    let saved = crate::checkpoint::load_config(init)?;
+                    crate::checkpoint::same_networks(&saved, &cfg).map_err(|e| {
+                        anyhow::anyhow!(
+                            "sweep file {origin}: job {name} cannot start from {}: {e}",
+                            init.display()
+                        )
+                    })?;
+                }
                 jobs.push(Job {
                     index: jobs.len(),
                     controller: controller.clone(),
@@ -332,11 +395,31 @@ pub fn parse(text: &str, path: &Path) -> anyhow::Result<Sweep> {
             }
         }
     }
+    let mut references = Vec::new();
+    for r in &spec.references {
+        if !valid_name(&r.name) || controllers.contains(&r.name) {
+            bail!("sweep file {origin}: reference `{}`: a name of letters, digits, '-', '_' or '.' that no preset's controller has", r.name);
+        }
+        let report = resolve_path(&r.report);
+        if !report.is_file() {
+            bail!(
+                "sweep file {origin}: reference `{}`: no suite report at `{}` (`hexapod eval --suite paper --out <dir>` writes <dir>/report.json)",
+                r.name,
+                r.report
+            );
+        }
+        controllers.insert(r.name.clone());
+        references.push(Reference {
+            name: r.name.clone(),
+            report,
+        });
+    }
     let sweep = Sweep {
         path: path.to_path_buf(),
         spec,
         dir,
         jobs,
+        references,
     };
     if let Some(job) = sweep.jobs.first() {
         suite::validate(&sweep.suite_options(job))
@@ -442,5 +525,58 @@ quick = true
         assert!(e.contains("`presets` is empty"), "{e}");
         let e = err("name = \"a b\"\npresets = [\"configs/smoke.toml\"]");
         assert!(e.contains("name `a b`"), "{e}");
+    }
+
+    #[test]
+    fn each_preset_starts_from_its_own_checkpoint_whose_networks_it_must_have() {
+        let spec = |table: &str| {
+            format!(
+                "name = \"t\"\nout_dir = \"target/test-sweeps/init-table\"\npresets = [\"configs/ablation-gsl.toml\", \"configs/comparison-baseline.toml\"]\n[init_checkpoint]\n{table}\n"
+            )
+        };
+        let err = |table: &str| {
+            format!(
+                "{:#}",
+                parse(&spec(table), Path::new("t.toml")).unwrap_err()
+            )
+        };
+        let shipped = "assets/policies/flat-tripod";
+        let e = err(&format!("ablation-gsl = \"{shipped}\""));
+        assert!(
+            e.contains("no checkpoint for the preset `comparison-baseline`"),
+            "{e}"
+        );
+        let e = err(&format!(
+            "ablation-gsl = \"{shipped}\"\ncomparison-baseline = \"{shipped}\"\nablation-gl = \"{shipped}\""
+        ));
+        assert!(
+            e.contains("`ablation-gl`, which is none of the presets"),
+            "{e}"
+        );
+        // The baseline has no estimator and no privileged critic: the shipped policy's
+        // networks are not its own.
+        let e = err(&format!(
+            "ablation-gsl = \"{shipped}\"\ncomparison-baseline = \"{shipped}\""
+        ));
+        assert!(
+            e.contains("comparison-baseline-s1 cannot start from") && e.contains("[policy]"),
+            "{e}"
+        );
+        let sweep = parse(
+            &spec(&format!(
+                "ablation-gsl = \"{shipped}\"\ncomparison-baseline = \"{shipped}\"\n"
+            ))
+            .replace(
+                "configs/comparison-baseline.toml",
+                "configs/ablation-gs.toml",
+            )
+            .replace("comparison-baseline =", "ablation-gs ="),
+            Path::new("t.toml"),
+        )
+        .unwrap();
+        assert!(sweep
+            .jobs
+            .iter()
+            .all(|j| j.init_checkpoint.as_ref().unwrap().ends_with(shipped)));
     }
 }

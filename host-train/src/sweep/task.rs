@@ -272,7 +272,7 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
         let spec = |init: &str| {
             format!(
-                "name = \"t\"\nout_dir = \"{}\"\npresets = [\"configs/smoke.toml\"]\ninit_checkpoint = \"{init}\"\nset = [\"runner.max_iterations=2\"]\n",
+                "name = \"t\"\nout_dir = \"{}\"\npresets = [\"configs/flat-tripod.toml\"]\ninit_checkpoint = \"{init}\"\nset = [\"runner.max_iterations=2\"]\n",
                 dir.display()
             )
         };

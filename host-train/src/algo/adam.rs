@@ -220,4 +220,70 @@ mod tests {
             a.slots[0].m.to_vec1::<f32>().unwrap()
         );
     }
+
+    #[test]
+    fn three_clipped_decayed_steps_match_torch_adams_formula() {
+        let map = VarMap::new();
+        let vb = VarBuilder::from_varmap(&map, DType::F32, &Device::Cpu);
+        let w = vb
+            .get_with_hints(
+                (2, 3),
+                "w",
+                Init::Randn {
+                    mean: 0.0,
+                    stdev: 1.0,
+                },
+            )
+            .unwrap();
+        let x = Tensor::new(&[[0.5f32, -1.0, 2.0], [1.5, 0.25, -0.75]], &Device::Cpu).unwrap();
+        let mut opt = Adam::new(&map, 0.01).unwrap().with_weight_decay(|_| 0.1);
+        let (lr, b1, b2, eps, decay, max_norm) =
+            (0.01f64, 0.9f64, 0.999f64, 1e-8f64, 0.1f64, 0.5f64);
+        let mut wr: Vec<f64> = w
+            .flatten_all()
+            .unwrap()
+            .to_vec1::<f32>()
+            .unwrap()
+            .iter()
+            .map(|&v| v as f64)
+            .collect();
+        let (mut m, mut v) = (vec![0.0f64; 6], vec![0.0f64; 6]);
+        for t in 1..=3 {
+            let loss = w.mul(&x).unwrap().sqr().unwrap().sum_all().unwrap();
+            let grads = loss.backward().unwrap();
+            let g: Vec<f64> = grads
+                .get(&w)
+                .unwrap()
+                .flatten_all()
+                .unwrap()
+                .to_vec1::<f32>()
+                .unwrap()
+                .iter()
+                .map(|&v| v as f64)
+                .collect();
+            let norm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
+            let scale = if norm > max_norm {
+                max_norm / (norm + 1e-6)
+            } else {
+                1.0
+            };
+            assert!((opt.step(&grads, Some(max_norm)).unwrap() - norm).abs() < 1e-5 * norm);
+            for i in 0..6 {
+                let gi = g[i] * scale + decay * wr[i];
+                m[i] = b1 * m[i] + (1.0 - b1) * gi;
+                v[i] = b2 * v[i] + (1.0 - b2) * gi * gi;
+                let denom = (v[i] / (1.0 - b2.powi(t))).sqrt() + eps;
+                wr[i] -= lr / (1.0 - b1.powi(t)) * m[i] / denom;
+            }
+            let got = w.flatten_all().unwrap().to_vec1::<f32>().unwrap();
+            for i in 0..6 {
+                assert!(
+                    (got[i] as f64 - wr[i]).abs() < 1e-5,
+                    "step {t}, {i}: {} against {}",
+                    got[i],
+                    wr[i]
+                );
+            }
+        }
+    }
 }

@@ -3,7 +3,7 @@
 //! PyTorch (`bench/learner_torch.py`), printed as ratios; plus end-to-end training
 //! throughput (env steps/s including updates) on the simulator.
 //!
-//! `cargo bench -p host-train --bench learner -- [--batch N]... [--reps N] [--no-torch] [--e2e-envs N] [--e2e-config F]`
+//! `cargo bench -p host-train --bench learner -- [--batch N]... [--reps N] [--no-torch] [--e2e-envs N] [--e2e-config F] [--only ppo|discriminator]`
 //!
 //! By default both batch sizes the presets train with are measured: 1,536 (a minibatch of the
 //! CPU presets' 128 x 24 rollout split in 2) and 24,576 (the paper's 4,096 x 24 split in 4).
@@ -36,6 +36,8 @@ struct Args {
     e2e_envs: usize,
     e2e_iterations: usize,
     e2e_config: String,
+    /// Measure only this step (`ppo` or `discriminator`), for profiling one of them.
+    only: Option<String>,
 }
 
 fn parse_args() -> anyhow::Result<Args> {
@@ -46,6 +48,7 @@ fn parse_args() -> anyhow::Result<Args> {
         e2e_envs: 128,
         e2e_iterations: 3,
         e2e_config: "flat-tripod.toml".into(),
+        only: None,
     };
     let mut it = std::env::args().skip(1);
     while let Some(arg) = it.next() {
@@ -64,6 +67,13 @@ fn parse_args() -> anyhow::Result<Args> {
             "--e2e-envs" => a.e2e_envs = num("--e2e-envs")?,
             "--e2e-iterations" => a.e2e_iterations = num("--e2e-iterations")?,
             "--no-torch" => a.torch = false,
+            "--only" => {
+                let step = it.next().context("--only needs ppo or discriminator")?;
+                if step != "ppo" && step != "discriminator" {
+                    bail!("--only {step}: ppo or discriminator");
+                }
+                a.only = Some(step);
+            }
             "--bench" => {}
             other => bail!("unknown argument {other}"),
         }
@@ -214,8 +224,17 @@ fn main() -> anyhow::Result<()> {
         "step", "batch", "candle s", "torch s", "ratio"
     );
     for &batch in &args.batches {
-        let ppo = candle_ppo_step(batch, args.reps)?;
-        let disc = candle_disc_step(batch, args.reps)?;
+        let wanted = |step: &str| args.only.as_deref().is_none_or(|o| o == step);
+        let ppo = if wanted("ppo") {
+            candle_ppo_step(batch, args.reps)?
+        } else {
+            f64::NAN
+        };
+        let disc = if wanted("discriminator") {
+            candle_disc_step(batch, args.reps)?
+        } else {
+            f64::NAN
+        };
         let torch = if args.torch {
             match torch_times(batch, args.reps, threads) {
                 Ok(t) => Some(t),

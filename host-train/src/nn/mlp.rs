@@ -2,7 +2,7 @@
 //! `<prefix>.layers.{k}.weight|bias` (shape `[out, in]`), the keys the code generator reads.
 
 use candle_core::{Result, Tensor};
-use candle_nn::{Linear, Module, VarBuilder};
+use candle_nn::{Linear, VarBuilder};
 
 /// A linear layer initialized as PyTorch's `nn.Linear` (what rsl_rl uses): weights and
 /// biases uniform in `+-1/sqrt(fan_in)`. (candle's `linear` draws Kaiming-normal weights for
@@ -17,6 +17,16 @@ pub fn torch_linear(input: usize, output: usize, vb: VarBuilder) -> Result<Linea
     let w = vb.get_with_hints((output, input), "weight", init)?;
     let b = vb.get_with_hints(output, "bias", init)?;
     Ok(Linear::new(w, Some(b)))
+}
+
+/// `x W^T + b` as `candle_nn::Linear` computes it for a `[B, in]` batch, with the bias
+/// added by [`crate::nn::bias::add_bias`] (its gradient one pass over the rows).
+fn linear(layer: &Linear, x: &Tensor) -> Result<Tensor> {
+    let y = x.matmul(&layer.weight().t()?)?;
+    match layer.bias() {
+        Some(b) => crate::nn::bias::add_bias(&y, b),
+        None => Ok(y),
+    }
 }
 
 /// A multilayer perceptron: `Linear -> ELU -> ... -> Linear`.
@@ -60,7 +70,7 @@ impl Mlp {
         let mut h = x.clone();
         let last = self.layers.len() - 1;
         for (k, layer) in self.layers.iter().enumerate() {
-            h = layer.forward(&h)?;
+            h = linear(layer, &h)?;
             if k < last {
                 h = crate::nn::elu::elu(&h)?;
             }
@@ -75,7 +85,7 @@ impl Mlp {
         let last = self.layers.len() - 1;
         let mut pre = Vec::with_capacity(last);
         for (k, layer) in self.layers.iter().enumerate() {
-            h = layer.forward(&h)?;
+            h = linear(layer, &h)?;
             if k < last {
                 pre.push(h.clone());
                 h = crate::nn::elu::elu(&h)?;

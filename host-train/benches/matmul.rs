@@ -59,88 +59,74 @@ fn candle_times(m: usize, k: usize, n: usize, reps: usize) -> anyhow::Result<[f6
     ])
 }
 
+/// A row-major matrix operand: its elements and (row stride, column stride).
+type Operand<'a> = (&'a [f32], isize, isize);
+
+/// `dst [rows, cols] = lhs [rows, inner] * rhs [inner, cols]` by the `gemm` kernel on one
+/// thread, `dst` row-major; an error if an operand's strides reach outside its slice.
+fn kernel_product(
+    dst: &mut [f32],
+    rows: usize,
+    cols: usize,
+    inner: usize,
+    lhs: Operand,
+    rhs: Operand,
+) -> anyhow::Result<()> {
+    let fits = |(v, rs, cs): Operand, r: usize, c: usize| {
+        (r as isize - 1) * rs + (c as isize - 1) * cs < v.len() as isize
+    };
+    anyhow::ensure!(
+        dst.len() == rows * cols && fits(lhs, rows, inner) && fits(rhs, inner, cols),
+        "operands smaller than a {rows} x {inner} by {inner} x {cols} product"
+    );
+    // Safety: the check above keeps every access inside the three slices.
+    unsafe {
+        gemm::gemm(
+            rows,
+            cols,
+            inner,
+            dst.as_mut_ptr(),
+            1,
+            cols as isize,
+            false,
+            lhs.0.as_ptr(),
+            lhs.2,
+            lhs.1,
+            rhs.0.as_ptr(),
+            rhs.2,
+            rhs.1,
+            0.0,
+            1.0,
+            false,
+            false,
+            false,
+            gemm::Parallelism::None,
+        )
+    }
+    Ok(())
+}
+
 /// The `gemm` kernel on one thread, the same three products into preallocated outputs, s.
 fn kernel_times(m: usize, k: usize, n: usize, reps: usize) -> anyhow::Result<[f64; 3]> {
-    use gemm::{gemm, Parallelism};
     let x: Vec<f32> = (0..m * k).map(|i| (i % 7) as f32 * 0.1).collect();
     let w: Vec<f32> = (0..n * k).map(|i| (i % 5) as f32 * 0.1).collect();
     let dy: Vec<f32> = (0..m * n).map(|i| (i % 3) as f32 * 0.1).collect();
     let (mut y, mut dx, mut dw) = (vec![0f32; m * n], vec![0f32; m * k], vec![0f32; n * k]);
     let (k_, n_) = (k as isize, n as isize);
-    // Safety: every pointer, size and stride below describes one of the buffers above.
-    let fwd = median_s(reps, || unsafe {
-        gemm(
-            m,
-            n,
-            k,
-            y.as_mut_ptr(),
-            1,
-            n_,
-            false,
-            x.as_ptr(),
-            1,
-            k_,
-            w.as_ptr(),
-            k_,
-            1,
-            0.0,
-            1.0,
-            false,
-            false,
-            false,
-            Parallelism::None,
-        );
-        Ok(())
-    })?;
-    let dxs = median_s(reps, || unsafe {
-        gemm(
-            m,
-            k,
-            n,
-            dx.as_mut_ptr(),
-            1,
-            k_,
-            false,
-            dy.as_ptr(),
-            1,
-            n_,
-            w.as_ptr(),
-            1,
-            k_,
-            0.0,
-            1.0,
-            false,
-            false,
-            false,
-            Parallelism::None,
-        );
-        Ok(())
-    })?;
-    let dws = median_s(reps, || unsafe {
-        gemm(
-            n,
-            k,
-            m,
-            dw.as_mut_ptr(),
-            1,
-            k_,
-            false,
-            dy.as_ptr(),
-            n_,
-            1,
-            x.as_ptr(),
-            1,
-            k_,
-            0.0,
-            1.0,
-            false,
-            false,
-            false,
-            Parallelism::None,
-        );
-        Ok(())
-    })?;
-    Ok([fwd, dxs, dws])
+    Ok([
+        // y = x w^T: w read transposed (row stride 1, column stride k).
+        median_s(reps, || {
+            kernel_product(&mut y, m, n, k, (&x, k_, 1), (&w, 1, k_))
+        })?,
+        // dx = dy w.
+        median_s(reps, || {
+            kernel_product(&mut dx, m, k, n, (&dy, n_, 1), (&w, k_, 1))
+        })?,
+        // dw = dy^T x: dy read transposed.
+        median_s(reps, || {
+            kernel_product(&mut dw, n, k, m, (&dy, 1, n_), (&x, k_, 1))
+        })?,
+    ])
 }
 
 /// PyTorch's times per shape (`bench/matmul_torch.py`), or why there are none.

@@ -4,20 +4,10 @@ given shapes, on the CPU with a given thread count. Prints the median time of ea
 """
 import argparse
 import json
-import time
 
 import torch
 
-
-def median_time(f, reps):
-    f()
-    times = []
-    for _ in range(reps):
-        t0 = time.perf_counter()
-        f()
-        times.append(time.perf_counter() - t0)
-    times.sort()
-    return times[len(times) // 2]
+from learner_torch import timed
 
 
 def main():
@@ -35,9 +25,9 @@ def main():
             x, w, dy = torch.randn(m, k), torch.randn(n, k), torch.randn(m, n)
             out.append({
                 "shape": [m, k, n],
-                "forward_s": median_time(lambda: x @ w.t(), a.reps),
-                "input_grad_s": median_time(lambda: dy @ w, a.reps),
-                "weight_grad_s": median_time(lambda: dy.t() @ x, a.reps),
+                "forward_s": timed(a.reps, lambda: x @ w.t()),
+                "input_grad_s": timed(a.reps, lambda: dy @ w),
+                "weight_grad_s": timed(a.reps, lambda: dy.t() @ x),
             })
     print(json.dumps({"torch": torch.__version__, "threads": a.threads, "results": out}))
 

@@ -6,16 +6,8 @@
 //! 1,536 rows (`perf`, BENCHMARKS.md). Accumulating whole rows into the `[N]` sum reads the
 //! gradient once, in order, and vectorizes.
 
+use crate::nn::elu::slice as contiguous;
 use candle_core::{CpuStorage, CustomOp1, CustomOp2, Layout, Result, Shape, Tensor};
-
-fn contiguous<'a, T>(data: &'a [T], layout: &Layout, op: &str) -> Result<&'a [T]> {
-    match layout.contiguous_offsets() {
-        Some((start, end)) => Ok(&data[start..end]),
-        None => Err(candle_core::Error::Msg(format!(
-            "{op}: input must be contiguous"
-        ))),
-    }
-}
 
 fn add_rows<T: Copy + std::ops::Add<Output = T>>(x: &[T], b: &[T]) -> Vec<T> {
     let mut out = Vec::with_capacity(x.len());
@@ -124,24 +116,8 @@ mod tests {
             ours.to_vec2::<f32>().unwrap(),
             theirs.to_vec2::<f32>().unwrap()
         );
-        let g1 = ours
-            .mul(&w)
-            .unwrap()
-            .sqr()
-            .unwrap()
-            .sum_all()
-            .unwrap()
-            .backward()
-            .unwrap();
-        let g2 = theirs
-            .mul(&w)
-            .unwrap()
-            .sqr()
-            .unwrap()
-            .sum_all()
-            .unwrap()
-            .backward()
-            .unwrap();
+        let grads = |y: &Tensor| y.mul(&w)?.sqr()?.sum_all()?.backward();
+        let (g1, g2) = (grads(&ours).unwrap(), grads(&theirs).unwrap());
         for v in [&x, &b] {
             let (a, e) = (g1.get(v).unwrap(), g2.get(v).unwrap());
             assert_eq!(

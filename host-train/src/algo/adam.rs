@@ -239,28 +239,16 @@ mod tests {
         let mut opt = Adam::new(&map, 0.01).unwrap().with_weight_decay(|_| 0.1);
         let (lr, b1, b2, eps, decay, max_norm) =
             (0.01f64, 0.9f64, 0.999f64, 1e-8f64, 0.1f64, 0.5f64);
-        let mut wr: Vec<f64> = w
-            .flatten_all()
-            .unwrap()
-            .to_vec1::<f32>()
-            .unwrap()
-            .iter()
-            .map(|&v| v as f64)
-            .collect();
+        let f64s = |t: &Tensor| -> Vec<f64> {
+            let v = t.flatten_all().unwrap().to_vec1::<f32>().unwrap();
+            v.into_iter().map(f64::from).collect()
+        };
+        let mut wr = f64s(&w);
         let (mut m, mut v) = (vec![0.0f64; 6], vec![0.0f64; 6]);
         for t in 1..=3 {
             let loss = w.mul(&x).unwrap().sqr().unwrap().sum_all().unwrap();
             let grads = loss.backward().unwrap();
-            let g: Vec<f64> = grads
-                .get(&w)
-                .unwrap()
-                .flatten_all()
-                .unwrap()
-                .to_vec1::<f32>()
-                .unwrap()
-                .iter()
-                .map(|&v| v as f64)
-                .collect();
+            let g = f64s(grads.get(&w).unwrap());
             let norm = g.iter().map(|v| v * v).sum::<f64>().sqrt();
             let scale = if norm > max_norm {
                 max_norm / (norm + 1e-6)

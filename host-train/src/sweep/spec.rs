@@ -344,11 +344,14 @@ pub fn parse(text: &str, path: &Path) -> anyhow::Result<Sweep> {
                 format!("sweep file {origin}: init_checkpoint has no checkpoint for the preset `{stem}`")
             })?),
         };
+        // The checkpoint and its config, read once per preset.
         let init_checkpoint = match init {
-            Some(c) => Some(
-                crate::checkpoint::resolve_dir(&resolve_path(c))
-                    .with_context(|| format!("sweep file {origin}: init_checkpoint `{c}`"))?,
-            ),
+            Some(c) => {
+                let dir = crate::checkpoint::resolve_dir(&resolve_path(c))
+                    .with_context(|| format!("sweep file {origin}: init_checkpoint `{c}`"))?;
+                let saved = crate::checkpoint::load_config(&dir)?;
+                Some((dir, saved))
+            }
             None => None,
         };
         let variants: Vec<Option<&Variant>> = if spec.variants.is_empty() {
@@ -372,9 +375,8 @@ pub fn parse(text: &str, path: &Path) -> anyhow::Result<Sweep> {
                 let name = format!("{controller}-s{seed}");
                 let cfg = job_config(&file, &overrides, seed)
                     .with_context(|| format!("sweep file {origin}: job {name}"))?;
-                if let Some(init) = &init_checkpoint {
-                    let saved = crate::checkpoint::load_config(init)?;
-                    crate::checkpoint::same_networks(&saved, &cfg).map_err(|e| {
+                if let Some((init, saved)) = &init_checkpoint {
+                    crate::checkpoint::same_networks(saved, &cfg).map_err(|e| {
                         anyhow::anyhow!(
                             "sweep file {origin}: job {name} cannot start from {}: {e}",
                             init.display()
@@ -389,7 +391,7 @@ pub fn parse(text: &str, path: &Path) -> anyhow::Result<Sweep> {
                     overrides: overrides.clone(),
                     dir: dir.join(&name),
                     max_iterations: cfg.runner.max_iterations,
-                    init_checkpoint: init_checkpoint.clone(),
+                    init_checkpoint: init_checkpoint.as_ref().map(|(dir, _)| dir.clone()),
                     rma_teacher: cfg.rma_teacher(),
                 });
             }

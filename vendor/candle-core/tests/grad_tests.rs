@@ -84,6 +84,31 @@ fn matmul_grad(device: &Device) -> Result<()> {
     Ok(())
 }
 
+// A product whose left side is data (no variable behind it) gives no gradient for that
+// side, and a gradient that reaches a node twice is summed, not overwritten.
+fn matmul_untracked_lhs_grad(device: &Device) -> Result<()> {
+    let x = Tensor::new(&[[1f32, 2.], [3., 4.]], device)?;
+    let w = Var::new(&[[0.5f32, -1.], [2., 0.25]], device)?;
+    let y = x.matmul(&w.t()?)?;
+    let y = (&y + &y)?;
+    let grads = y.sum_all()?.backward()?;
+    // d/dw sum(2 x wᵀ): twice the column sums of x, on every row of w.
+    assert_eq!(
+        grads.get(&w).context("no grad for w")?.to_vec2::<f32>()?,
+        [[8., 12.], [8., 12.]]
+    );
+    assert!(grads.get(&x).is_none());
+    // The same product with the data on the right.
+    let z = w.as_tensor().matmul(&x)?;
+    let grads = z.sum_all()?.backward()?;
+    assert_eq!(
+        grads.get(&w).context("no grad for w")?.to_vec2::<f32>()?,
+        [[3., 7.], [3., 7.]]
+    );
+    assert!(grads.get(&x).is_none());
+    Ok(())
+}
+
 fn assert_zero_grad(grads: &GradStore, var: &Var, shape: &[usize]) -> Result<()> {
     let grad = grads.get(var).context("no gradient for variable")?;
     assert_eq!(grad.dims(), shape);
@@ -658,4 +683,11 @@ test_device!(
     index_select_strided_ids_grad_cpu,
     index_select_strided_ids_grad_gpu,
     index_select_strided_ids_grad_metal
+);
+
+test_device!(
+    matmul_untracked_lhs_grad,
+    matmul_untracked_lhs_grad_cpu,
+    matmul_untracked_lhs_grad_gpu,
+    matmul_untracked_lhs_grad_metal
 );

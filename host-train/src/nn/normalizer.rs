@@ -134,10 +134,13 @@ impl EmpiricalNormalizer {
         Ok(())
     }
 
-    /// Normalizes `[B, dim]`.
+    /// Normalizes `[B, dim]`. The statistics enter as constants (detached from their
+    /// variables, which no optimizer trains), so normalized data tracks no gradient and
+    /// the backward pass neither differentiates the normalization nor forms the input
+    /// gradient of the first layer it feeds.
     pub fn normalize(&self, x: &Tensor) -> Result<Tensor> {
-        x.broadcast_sub(self.mean_var.as_tensor())?
-            .broadcast_div(self.std_var.as_tensor())
+        x.broadcast_sub(&self.mean_var.as_tensor().detach())?
+            .broadcast_div(&self.std_var.as_tensor().detach())
     }
 }
 
@@ -170,5 +173,13 @@ mod tests {
         assert!(y[0][0].abs() < 1e-6);
         assert!((y[0][1] - 1.0 / (n.var[1].sqrt() + NORMALIZER_EPS) as f32).abs() < 1e-5);
         assert!(map.data().lock().unwrap().contains_key("normalizer.x.std"));
+    }
+
+    #[test]
+    fn normalized_data_tracks_no_gradient() {
+        let map = VarMap::new();
+        let n = EmpiricalNormalizer::new(&map, "x", 2, &Device::Cpu).unwrap();
+        let x = Tensor::ones((3, 2), DType::F32, &Device::Cpu).unwrap();
+        assert!(!n.normalize(&x).unwrap().track_op());
     }
 }

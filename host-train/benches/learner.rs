@@ -26,6 +26,9 @@ use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
 
+/// The command line, printed by `--help` and after an unknown argument.
+const USAGE: &str = "cargo bench -p host-train --bench learner -- [--batch N]... [--reps N] [--no-torch] [--e2e-envs N] [--e2e-iterations N] [--e2e-config F] [--only ppo|discriminator]";
+
 #[global_allocator]
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
@@ -75,7 +78,11 @@ fn parse_args() -> anyhow::Result<Args> {
                 a.only = Some(step);
             }
             "--bench" => {}
-            other => bail!("unknown argument {other}"),
+            "--help" | "-h" => {
+                println!("{USAGE}");
+                std::process::exit(0);
+            }
+            other => bail!("unknown argument {other}\nusage: {USAGE}"),
         }
     }
     if a.batches.is_empty() {

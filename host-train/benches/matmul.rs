@@ -34,6 +34,10 @@ const LAYERS: [(usize, usize); 6] = [
 /// Which product of a layer.
 const PRODUCTS: [&str; 3] = ["forward", "input_grad", "weight_grad"];
 
+/// The command line, printed by `--help` and after an unknown argument.
+const USAGE: &str =
+    "cargo bench -p host-train --bench matmul -- [--batch N]... [--reps N] [--no-torch]";
+
 fn median_s<T>(reps: usize, mut f: impl FnMut() -> anyhow::Result<T>) -> anyhow::Result<f64> {
     f()?;
     let mut t = Vec::with_capacity(reps);
@@ -190,7 +194,11 @@ fn main() -> anyhow::Result<()> {
             }
             "--no-torch" => torch = false,
             "--bench" => {}
-            other => anyhow::bail!("unknown argument {other}"),
+            "--help" | "-h" => {
+                println!("{USAGE}");
+                std::process::exit(0);
+            }
+            other => anyhow::bail!("unknown argument {other}\nusage: {USAGE}"),
         }
     }
     anyhow::ensure!(reps > 0, "--reps must be positive");

@@ -296,6 +296,12 @@ pub struct AmpConfig {
     /// schedule), as AMP_for_hardware does with one optimizer for both, instead of the
     /// fixed `learning_rate`.
     pub follow_policy_learning_rate: bool,
+    /// Discriminator gradient steps per iteration: it trains on the first this many of the
+    /// update's PPO minibatches (0: on every one, as AMP_for_hardware does). With few robots
+    /// per iteration every minibatch gives the discriminator many more steps per environment
+    /// sample than the reference implementations take (AMP_for_hardware: 20 steps per
+    /// 4,096 x 24 samples; `flat-tripod`: 6 per 128 x 24), and it outruns the policy.
+    pub steps_per_iteration: usize,
 }
 
 impl Default for AmpConfig {
@@ -313,6 +319,7 @@ impl Default for AmpConfig {
             priors_dir: "assets/priors".into(),
             prior_states: crate::priors::dataset::PriorStates::Tracked,
             follow_policy_learning_rate: false,
+            steps_per_iteration: 0,
         }
     }
 }

@@ -77,6 +77,14 @@ pub const PLOT_GROUPS: &[(&str, &[PlotPanel])] = &[
         )],
     ),
     (
+        "discriminator_saliency",
+        &[panel(
+            "what the discriminator reads: mean |dD/dx| per AMP feature group (normalized inputs)",
+            "mean |dD/dx|",
+            &["amp_saliency/"],
+        )],
+    ),
+    (
         "tracking_error",
         &[
             panel(

@@ -3,6 +3,7 @@
 
 use crate::algo::ppo::{Ppo, UpdateStats};
 use crate::algo::storage::{RolloutStorage, Transition};
+use crate::amp::discriminator::AMP_GROUPS;
 use crate::amp::prior_source::{MotionPriorSource, PriorSourceError};
 use crate::checkpoint;
 use crate::config::TrainConfig;
@@ -448,6 +449,11 @@ fn metrics_row(
     put("loss/estimator", up.estimator as f64);
     put("loss/discriminator", up.disc_loss as f64);
     put("loss/grad_penalty", up.grad_penalty as f64);
+    if up.disc_saliency.iter().any(|&v| v != 0.0) {
+        for ((name, _), v) in AMP_GROUPS.iter().zip(up.disc_saliency) {
+            put(&format!("amp_saliency/{name}"), v as f64);
+        }
+    }
     put("train/kl", up.kl as f64);
     put("train/kl_first", up.kl_first as f64);
     put("train/learning_rate", up.learning_rate);

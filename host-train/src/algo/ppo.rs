@@ -5,7 +5,7 @@
 
 use crate::algo::adam::Adam;
 use crate::algo::storage::{gather_rows, RolloutStorage};
-use crate::amp::discriminator::Discriminator;
+use crate::amp::discriminator::{Discriminator, AMP_GROUPS};
 use crate::amp::prior_source::MotionPriorSource;
 use crate::amp::transition_buffer::TransitionBuffer;
 use crate::config::{LrSchedule, TrainConfig};
@@ -167,6 +167,9 @@ pub struct UpdateStats {
     pub d_prior: f32,
     /// Mean D on policy transitions.
     pub d_policy: f32,
+    /// The discriminator's saliency per AMP feature group on the first minibatch's policy
+    /// transitions ([`crate::amp::discriminator::Discriminator::saliency`]).
+    pub disc_saliency: [f32; AMP_GROUPS.len()],
     /// Mean action standard deviation.
     pub action_std: f32,
 }
@@ -421,12 +424,18 @@ impl Ppo {
         let old_log_std = self.ac.log_std.detach().copy()?;
         let mut priors = priors;
         let mut st = UpdateStats::default();
-        let mut count = 0usize;
+        let (mut count, mut disc_count) = (0usize, 0usize);
+        let disc_steps = match self.cfg.amp.steps_per_iteration {
+            0 => usize::MAX,
+            k => k,
+        };
         for _epoch in 0..p.num_learning_epochs {
             for idx in storage.minibatch_indices(p.num_mini_batches, &mut self.rng) {
                 let mb = Minibatch::gather(storage, &idx, &self.device)?;
                 let amp = match (&self.transitions, priors.as_deref_mut()) {
-                    (Some(transitions), Some(src)) if self.disc.is_some() => {
+                    (Some(transitions), Some(src))
+                        if self.disc.is_some() && disc_count < disc_steps =>
+                    {
                         let (policy_s, policy_sn) = transitions.sample(idx.len(), &mut self.rng);
                         let (prior_s, prior_sn) = src.sample(idx.len(), &mut self.rng);
                         Some(AmpBatch {
@@ -442,16 +451,23 @@ impl Ppo {
                 if count == 0 {
                     st.kl_first = step.kl;
                 }
+                if let (Some(disc), Some(a)) = (&self.disc, &amp) {
+                    if disc_count == 0 {
+                        st.disc_saliency =
+                            disc.saliency(&disc.input(&a.policy_s, &a.policy_sn)?)?;
+                    }
+                    st.disc_loss += step.disc_loss;
+                    st.grad_penalty += step.grad_penalty;
+                    st.d_prior += step.d_prior;
+                    st.d_policy += step.d_policy;
+                    disc_count += 1;
+                }
                 st.surrogate += step.surrogate;
                 st.value += step.value;
                 st.entropy += step.entropy;
                 st.estimator += step.estimator;
                 st.kl += step.kl;
                 st.grad_norm += step.grad_norm;
-                st.disc_loss += step.disc_loss;
-                st.grad_penalty += step.grad_penalty;
-                st.d_prior += step.d_prior;
-                st.d_policy += step.d_policy;
                 count += 1;
             }
         }
@@ -463,12 +479,17 @@ impl Ppo {
             &mut st.estimator,
             &mut st.kl,
             &mut st.grad_norm,
+        ] {
+            *v /= c;
+        }
+        let dc = disc_count.max(1) as f32;
+        for v in [
             &mut st.disc_loss,
             &mut st.grad_penalty,
             &mut st.d_prior,
             &mut st.d_policy,
         ] {
-            *v /= c;
+            *v /= dc;
         }
         st.learning_rate = self.opt.lr;
         st.action_std = self.ac.log_std.exp()?.mean_all()?.to_scalar::<f32>()?;

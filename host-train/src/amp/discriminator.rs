@@ -11,10 +11,24 @@ use crate::nn::mlp::Mlp;
 use crate::nn::normalizer::EmpiricalNormalizer;
 use candle_core::{DType, Device, Result, Tensor};
 use candle_nn::{VarBuilder, VarMap};
-use hexapod_core::amp::AMP_STATE_DIM;
+use hexapod_core::amp::{
+    AMP_BASE_ANG_VEL, AMP_BASE_HEIGHT, AMP_BASE_LIN_VEL, AMP_FOOT_POS, AMP_JOINT_POS,
+    AMP_JOINT_VEL, AMP_STATE_DIM,
+};
+use std::ops::Range;
 
 /// Discriminator input size.
 pub const DISC_IN: usize = 2 * AMP_STATE_DIM;
+
+/// The AMP state's feature groups, named as the metrics name them ([`Discriminator::saliency`]).
+pub const AMP_GROUPS: [(&str, Range<usize>); 6] = [
+    ("joint_pos", AMP_JOINT_POS),
+    ("joint_vel", AMP_JOINT_VEL),
+    ("base_lin_vel", AMP_BASE_LIN_VEL),
+    ("base_ang_vel", AMP_BASE_ANG_VEL),
+    ("base_height", AMP_BASE_HEIGHT..AMP_BASE_HEIGHT + 1),
+    ("foot_pos", AMP_FOOT_POS),
+];
 
 /// The discriminator's losses and diagnostics for one minibatch.
 pub struct DiscriminatorLoss {
@@ -85,6 +99,31 @@ impl Discriminator {
             .to_vec1::<f32>()?;
         let r = d.iter().map(|&d| style_reward_of(d)).collect();
         Ok((r, d))
+    }
+
+    /// What the discriminator's verdict rests on: the mean of `|dD/dx|` over the normalized
+    /// inputs `[n, 122]`, per feature group of [`AMP_GROUPS`] (the group's features of both
+    /// states of the transition, averaged). The inputs are standardized, so the groups
+    /// compare: a group far above the others is where the inputs differ from the priors in
+    /// a way the discriminator has learned to see.
+    pub fn saliency(&self, x: &Tensor) -> Result<[f32; AMP_GROUPS.len()]> {
+        let (_, pre) = self.net.forward_with_preactivations(x)?;
+        let per_input = self
+            .net
+            .input_gradient(&pre)?
+            .abs()?
+            .mean(0)?
+            .to_dtype(DType::F32)?
+            .to_vec1::<f32>()?;
+        let mut out = [0.0f32; AMP_GROUPS.len()];
+        for (o, (_, range)) in out.iter_mut().zip(AMP_GROUPS.iter()) {
+            let sum: f32 = range
+                .clone()
+                .map(|i| per_input[i] + per_input[AMP_STATE_DIM + i])
+                .sum();
+            *o = sum / (2 * range.len()) as f32;
+        }
+        Ok(out)
     }
 
     /// The least-squares loss with gradient penalty on prior inputs `[n, 122]` and policy
@@ -195,6 +234,41 @@ mod tests {
             }
         }
         assert!(checked >= 16);
+    }
+
+    /// A discriminator that reads only the base height (the first layer's weights zero but
+    /// for that input, in both states) has saliency there and nowhere else.
+    #[test]
+    fn saliency_finds_the_one_input_the_discriminator_reads() {
+        let dev = Device::Cpu;
+        let (params, stats) = (VarMap::new(), VarMap::new());
+        let disc = Discriminator::new(&[8], &params, &stats, DType::F32, &dev).unwrap();
+        {
+            let data = params.data().lock().unwrap();
+            let w = data.get("discriminator.layers.0.weight").unwrap();
+            let mut mask = vec![0.0f32; 8 * DISC_IN];
+            for row in 0..8 {
+                mask[row * DISC_IN + AMP_BASE_HEIGHT] = 1.0;
+                mask[row * DISC_IN + AMP_STATE_DIM + AMP_BASE_HEIGHT] = 1.0;
+            }
+            let mask = Tensor::from_vec(mask, (8, DISC_IN), &dev).unwrap();
+            w.set(&(w.as_tensor() * mask).unwrap()).unwrap();
+        }
+        let x: Vec<f32> = (0..32 * DISC_IN)
+            .map(|i| (i * 7919 % 101) as f32 / 50.0 - 1.0)
+            .collect();
+        let x = Tensor::from_vec(x, (32, DISC_IN), &dev).unwrap();
+        let s = disc.saliency(&x).unwrap();
+        let height = AMP_GROUPS
+            .iter()
+            .position(|(name, _)| *name == "base_height")
+            .unwrap();
+        assert!(s[height] > 0.0, "{s:?}");
+        for (k, v) in s.iter().enumerate() {
+            if k != height {
+                assert_eq!(*v, 0.0, "{}: {s:?}", AMP_GROUPS[k].0);
+            }
+        }
     }
 
     #[test]

@@ -3,13 +3,12 @@
 
 use crate::algo::ppo::{Ppo, UpdateStats};
 use crate::algo::storage::{RolloutStorage, Transition};
-use crate::amp::discriminator::AMP_GROUPS;
 use crate::amp::prior_source::{MotionPriorSource, PriorSourceError};
 use crate::checkpoint;
 use crate::config::TrainConfig;
 use crate::error::TrainError;
 use crate::metrics::MetricsLog;
-use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_STATE_DIM};
+use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_GROUPS, AMP_STATE_DIM};
 use hexapod_core::obs::{
     ACTOR_COMMAND, ACTOR_OBS_DIM, COMMAND_SCALE, LIN_VEL_SCALE, PRIVILEGED_DIM, PRIV_LIN_VEL,
 };
@@ -449,8 +448,8 @@ fn metrics_row(
     put("loss/estimator", up.estimator as f64);
     put("loss/discriminator", up.disc_loss as f64);
     put("loss/grad_penalty", up.grad_penalty as f64);
-    if up.disc_saliency.iter().any(|&v| v != 0.0) {
-        for ((name, _), v) in AMP_GROUPS.iter().zip(up.disc_saliency) {
+    if let Some(saliency) = up.disc_saliency {
+        for ((name, _), v) in AMP_GROUPS.iter().zip(saliency) {
             put(&format!("amp_saliency/{name}"), v as f64);
         }
     }

@@ -32,6 +32,17 @@ pub const AMP_BASE_HEIGHT: usize = 42;
 /// Foot positions in the base frame, leg-major.
 pub const AMP_FOOT_POS: Range<usize> = 43..61;
 
+/// The layout's feature groups by name, in order (they tile the state); the names are the
+/// trainer's metric names (`amp_saliency/<name>`).
+pub const AMP_GROUPS: [(&str, Range<usize>); 6] = [
+    ("joint_pos", AMP_JOINT_POS),
+    ("joint_vel", AMP_JOINT_VEL),
+    ("base_lin_vel", AMP_BASE_LIN_VEL),
+    ("base_ang_vel", AMP_BASE_ANG_VEL),
+    ("base_height", AMP_BASE_HEIGHT..AMP_BASE_HEIGHT + 1),
+    ("foot_pos", AMP_FOOT_POS),
+];
+
 /// Number of feet whose mean height defines the stance level: one tripod.
 pub const STANCE_FEET: usize = 3;
 
@@ -92,6 +103,12 @@ mod tests {
         assert_eq!(AMP_BASE_ANG_VEL.end, AMP_BASE_HEIGHT);
         assert_eq!(AMP_BASE_HEIGHT + 1, AMP_FOOT_POS.start);
         assert_eq!(AMP_FOOT_POS.end, AMP_STATE_DIM);
+        let mut next = 0;
+        for (_, range) in AMP_GROUPS.iter() {
+            assert_eq!(range.start, next);
+            next = range.end;
+        }
+        assert_eq!(next, AMP_STATE_DIM);
     }
 
     #[test]

@@ -5,14 +5,14 @@
 
 use crate::algo::adam::Adam;
 use crate::algo::storage::{gather_rows, RolloutStorage};
-use crate::amp::discriminator::{Discriminator, AMP_GROUPS};
+use crate::amp::discriminator::Discriminator;
 use crate::amp::prior_source::MotionPriorSource;
 use crate::amp::transition_buffer::TransitionBuffer;
 use crate::config::{LrSchedule, TrainConfig};
 use crate::nn::actor_critic::{ActorCritic, BatchInput};
 use candle_core::{DType, Device, Result, Tensor};
 use candle_nn::VarMap;
-use hexapod_core::amp::AMP_STATE_DIM;
+use hexapod_core::amp::{AMP_GROUPS, AMP_STATE_DIM};
 use hexapod_core::nets::{ACTOR_OUT, ESTIMATOR_OUT};
 use hexapod_core::obs::{
     ACTOR_OBS_DIM, HEIGHT_SCAN_DIM, HISTORY_DIM, PRIVILEGED_DIM, PRIV_LIN_VEL,
@@ -168,8 +168,9 @@ pub struct UpdateStats {
     /// Mean D on policy transitions.
     pub d_policy: f32,
     /// The discriminator's saliency per AMP feature group on the first minibatch's policy
-    /// transitions ([`crate::amp::discriminator::Discriminator::saliency`]).
-    pub disc_saliency: [f32; AMP_GROUPS.len()],
+    /// transitions ([`crate::amp::discriminator::Discriminator::saliency`]); `None` when
+    /// no discriminator trained.
+    pub disc_saliency: Option<[f32; AMP_GROUPS.len()]>,
     /// Mean action standard deviation.
     pub action_std: f32,
 }
@@ -454,7 +455,7 @@ impl Ppo {
                 if let (Some(disc), Some(a)) = (&self.disc, &amp) {
                     if disc_count == 0 {
                         st.disc_saliency =
-                            disc.saliency(&disc.input(&a.policy_s, &a.policy_sn)?)?;
+                            Some(disc.saliency(&disc.input(&a.policy_s, &a.policy_sn)?)?);
                     }
                     st.disc_loss += step.disc_loss;
                     st.grad_penalty += step.grad_penalty;

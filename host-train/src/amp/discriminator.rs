@@ -11,24 +11,10 @@ use crate::nn::mlp::Mlp;
 use crate::nn::normalizer::EmpiricalNormalizer;
 use candle_core::{DType, Device, Result, Tensor};
 use candle_nn::{VarBuilder, VarMap};
-use hexapod_core::amp::{
-    AMP_BASE_ANG_VEL, AMP_BASE_HEIGHT, AMP_BASE_LIN_VEL, AMP_FOOT_POS, AMP_JOINT_POS,
-    AMP_JOINT_VEL, AMP_STATE_DIM,
-};
-use std::ops::Range;
+use hexapod_core::amp::{AMP_GROUPS, AMP_STATE_DIM};
 
 /// Discriminator input size.
 pub const DISC_IN: usize = 2 * AMP_STATE_DIM;
-
-/// The AMP state's feature groups, named as the metrics name them ([`Discriminator::saliency`]).
-pub const AMP_GROUPS: [(&str, Range<usize>); 6] = [
-    ("joint_pos", AMP_JOINT_POS),
-    ("joint_vel", AMP_JOINT_VEL),
-    ("base_lin_vel", AMP_BASE_LIN_VEL),
-    ("base_ang_vel", AMP_BASE_ANG_VEL),
-    ("base_height", AMP_BASE_HEIGHT..AMP_BASE_HEIGHT + 1),
-    ("foot_pos", AMP_FOOT_POS),
-];
 
 /// The discriminator's losses and diagnostics for one minibatch.
 pub struct DiscriminatorLoss {
@@ -162,6 +148,7 @@ pub fn style_reward_of(d: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use hexapod_core::amp::AMP_BASE_HEIGHT;
 
     #[test]
     fn style_reward_shape() {

@@ -129,6 +129,11 @@ pub struct EnvConfig {
     /// and velocities) instead of standing at the nominal pose, when the learner has given
     /// reference states (AMP's reference state initialization; AMP_for_hardware uses 0.85).
     pub reference_init_probability: f32,
+    /// An episode started from a reference state is commanded the velocity of that state's
+    /// motion (its clip's command) until the command is first resampled, instead of a
+    /// random command: the robot starts mid-stride doing what it is asked. Off in the paper's
+    /// setup and in AMP_for_hardware, which draw the two independently.
+    pub reference_init_command: bool,
 }
 
 impl Default for EnvConfig {
@@ -147,6 +152,7 @@ impl Default for EnvConfig {
             rewards: RewardScales::default(),
             randomization: RandomizationConfig::default(),
             reference_init_probability: 0.0,
+            reference_init_command: false,
             push: PushConfig::default(),
         }
     }

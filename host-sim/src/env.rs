@@ -6,7 +6,7 @@ use crate::config::{ConfigError, EnvConfig};
 use crate::curriculum::{curriculum_step, CommandProgress, LevelChange};
 use crate::frames::{quat_from_yaw, quat_mul, rotate, rotate_inverse, yaw_rad};
 use crate::observe;
-use crate::reference::ReferenceState;
+use crate::reference::ReferenceStart;
 use crate::rewards::{self, RewardInputs, TERM_NAMES};
 use crate::robot::{BuildError, ContactState, DriveParams, RobotState, RobotWorld};
 use crate::terrain::Terrain;
@@ -72,7 +72,7 @@ struct Slot {
     column: usize,
     origin_m: [f32; 2],
     spawn_pose: Option<SpawnPose>,
-    references: Arc<[ReferenceState]>,
+    references: Arc<[ReferenceStart]>,
     command_progress: CommandProgress,
     command: [f32; 3],
     /// The command set by [`VecEnv::set_command`], kept instead of resampling.
@@ -248,7 +248,7 @@ impl HexapodEnv {
 
     /// The reference states episodes may start from (reference state initialization, with
     /// probability `reference_init_probability` per reset), shared by all robots.
-    pub fn set_reference_states(&mut self, states: Arc<[ReferenceState]>) {
+    pub fn set_reference_states(&mut self, states: Arc<[ReferenceStart]>) {
         for slot in &mut self.slots {
             slot.references = states.clone();
         }
@@ -319,7 +319,7 @@ impl VecEnv for HexapodEnv {
         self.slots.len()
     }
 
-    fn set_reference_states(&mut self, states: Arc<[ReferenceState]>) {
+    fn set_reference_states(&mut self, states: Arc<[ReferenceStart]>) {
         HexapodEnv::set_reference_states(self, states);
     }
 
@@ -544,7 +544,8 @@ impl Slot {
                 .clamp(Q_MIN_RAD[j], Q_MAX_RAD[j]);
             }
         }
-        let reference = self.draw_reference(config);
+        let start = self.draw_reference(config);
+        let reference = start.map(|s| s.state);
         self.action = [0.0; NUM_JOINTS];
         if let Some(r) = reference {
             // Reference state initialization: the prior's pose and velocities, tilted as in
@@ -568,6 +569,12 @@ impl Slot {
         }
         self.command_progress = CommandProgress::default();
         self.sample_command(config);
+        if let (Some(start), true, None) =
+            (start, config.reference_init_command, self.fixed_command)
+        {
+            // Until the first resample, the robot is asked for what its motion was doing.
+            self.command = start.command;
+        }
         self.prev_action = self.action;
         self.prev_targets = q;
         self.last_qdot = reference.map_or([0.0; NUM_JOINTS], |r| r.qdot_rad_s);
@@ -582,7 +589,7 @@ impl Slot {
     }
 
     /// A reference state to start from, with probability `reference_init_probability`.
-    fn draw_reference(&mut self, config: &EnvConfig) -> Option<ReferenceState> {
+    fn draw_reference(&mut self, config: &EnvConfig) -> Option<ReferenceStart> {
         if config.reference_init_probability <= 0.0 || self.references.is_empty() {
             return None;
         }

@@ -22,6 +22,17 @@ pub struct ReferenceState {
     pub base_height_m: f32,
 }
 
+/// A state an episode may start from (reference state initialization), with the velocity
+/// command its motion realizes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ReferenceStart {
+    /// The motion's state at some instant.
+    pub state: ReferenceState,
+    /// The motion's velocity (vx m/s, vy m/s, wz rad/s): its clip's command, or what the
+    /// simulator measured while tracking it.
+    pub command: [f32; 3],
+}
+
 impl ReferenceState {
     /// The AMP state of this instant, by the function the simulator uses on its own state.
     pub fn amp_state(&self) -> [f32; AMP_STATE_DIM] {

@@ -72,7 +72,7 @@ pub trait VecEnv {
     /// environments without it ignore them.
     fn set_reference_states(
         &mut self,
-        _states: std::sync::Arc<[crate::reference::ReferenceState]>,
+        _states: std::sync::Arc<[crate::reference::ReferenceStart]>,
     ) {
     }
 }

@@ -198,7 +198,7 @@ fn targets_take_the_firmware_action_path() {
 #[test]
 fn episodes_start_from_reference_states_when_given() {
     use host_sim::frames::rotate_inverse;
-    use host_sim::reference::ReferenceState;
+    use host_sim::reference::{ReferenceStart, ReferenceState};
     let mut c = quiet_config(4);
     c.reference_init_probability = 1.0;
     let mut env = HexapodEnv::new(c).unwrap();
@@ -213,7 +213,11 @@ fn episodes_start_from_reference_states_when_given() {
         up_base: [tilt.sin(), 0.0, tilt.cos()],
         base_height_m: 0.30,
     };
-    env.set_reference_states(vec![reference].into());
+    let start = ReferenceStart {
+        state: reference,
+        command: [0.3, 0.0, 0.4],
+    };
+    env.set_reference_states(vec![start].into());
     env.reset();
     for i in 0..4 {
         let s = env.robot_state(i);
@@ -242,10 +246,53 @@ fn episodes_start_from_reference_states_when_given() {
             s.base_pos_world_m[2]
         );
     }
+    // Their commands stay random unless asked for the motion's command.
+    assert!((0..4).all(|i| env.command(i) != start.command));
     // Without reference states (or with probability 0) robots stand at the nominal pose.
     let mut env = HexapodEnv::new(quiet_config(1)).unwrap();
     env.reset();
     assert_eq!(env.robot_state(0).qdot_rad_s, [0.0; NUM_JOINTS]);
+}
+
+#[test]
+fn a_reference_start_can_bring_its_motions_command() {
+    use host_sim::reference::{ReferenceStart, ReferenceState};
+    let state = ReferenceState {
+        q_rad: hexapod_core::robot::Q0_RAD,
+        qdot_rad_s: [0.0; NUM_JOINTS],
+        lin_vel_base_m_s: [0.2, 0.1, 0.0],
+        ang_vel_base_rad_s: [0.0, 0.0, -0.3],
+        up_base: [0.0, 0.0, 1.0],
+        base_height_m: 0.30,
+    };
+    let start = ReferenceStart {
+        state,
+        command: [0.2, 0.1, -0.3],
+    };
+    let mut c = quiet_config(3);
+    c.reference_init_probability = 1.0;
+    c.reference_init_command = true;
+    let mut env = HexapodEnv::new(c.clone()).unwrap();
+    env.set_reference_states(vec![start].into());
+    env.set_command(2, [0.0, 0.0, 0.5]);
+    let obs = env.reset();
+    assert_eq!(env.command(0), start.command);
+    assert_eq!(env.command(1), start.command);
+    // A fixed command (play, evaluation) wins over the motion's.
+    assert_eq!(env.command(2), [0.0, 0.0, 0.5]);
+    // The actor sees it: same observation as a robot given that command by hand.
+    let mut by_hand = HexapodEnv::new(c).unwrap();
+    by_hand.set_reference_states(vec![start].into());
+    by_hand.set_command(0, start.command);
+    let expected = by_hand.reset();
+    assert_eq!(obs.actor[..3], expected.actor[..3]);
+    // With probability 0 no episode starts from it, and the command is drawn as usual.
+    let mut c = quiet_config(3);
+    c.reference_init_command = true;
+    let mut env = HexapodEnv::new(c).unwrap();
+    env.set_reference_states(vec![start].into());
+    env.reset();
+    assert!((0..3).all(|i| env.command(i) != start.command));
 }
 
 #[test]

@@ -5,15 +5,16 @@ use crate::priors::dataset::MotionDataset;
 use hexapod_core::amp::{amp_state, AMP_STATE_DIM};
 use hexapod_core::robot::{Leg, NUM_JOINTS, Q0_RAD};
 use hexapod_core::timing::POLICY_DT_S;
-use host_sim::reference::ReferenceState;
+use host_sim::reference::ReferenceStart;
 use rand::{Rng, RngCore};
 
 /// A source of prior transitions.
 pub trait MotionPriorSource {
     /// `n` transitions (`s_t` `[n, 61]`, `s_t+1` `[n, 61]`), one policy step apart.
     fn sample(&mut self, n: usize, rng: &mut dyn RngCore) -> (Vec<f32>, Vec<f32>);
-    /// States episodes may start from (reference state initialization); none by default.
-    fn reference_states(&self) -> Vec<ReferenceState> {
+    /// States episodes may start from (reference state initialization), each with its
+    /// motion's command; none by default.
+    fn reference_states(&self) -> Vec<ReferenceStart> {
         Vec::new()
     }
 }
@@ -132,7 +133,7 @@ impl MotionPriorSource for MotionDataset {
         (s, sn)
     }
 
-    fn reference_states(&self) -> Vec<ReferenceState> {
+    fn reference_states(&self) -> Vec<ReferenceStart> {
         MotionDataset::reference_states(self)
     }
 }

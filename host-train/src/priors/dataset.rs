@@ -11,7 +11,7 @@
 use super::clip::{ClipError, LoopMode, MotionClip};
 use super::sim_tracking::{replay_clip, ReplayConfig};
 use hexapod_core::amp::AMP_STATE_DIM;
-use host_sim::reference::ReferenceState;
+use host_sim::reference::{ReferenceStart, ReferenceState};
 use rand::Rng;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -224,10 +224,15 @@ impl MotionDataset {
     }
 
     /// Every reference state of every motion (for reference state initialization).
-    pub fn reference_states(&self) -> Vec<ReferenceState> {
+    pub fn reference_states(&self) -> Vec<ReferenceStart> {
         self.motions
             .iter()
-            .flat_map(|m| m.states.iter().copied())
+            .flat_map(|m| {
+                m.states.iter().map(|&state| ReferenceStart {
+                    state,
+                    command: m.command,
+                })
+            })
             .collect()
     }
 

@@ -271,6 +271,22 @@ fn tracked_states_are_the_simulator_performing_the_clips() {
             .map(|m| m.states.len())
             .sum::<usize>()
     );
+    // Each carries its motion's command: the forward clip's states ask for what the
+    // simulator measured it doing.
+    let starts = tracked.reference_states();
+    let first_forward: usize = tracked
+        .motions()
+        .iter()
+        .take_while(|m| m.name != "forward_0.3")
+        .map(|m| m.states.len())
+        .sum();
+    assert_eq!(starts[first_forward].state, forward.states[0]);
+    assert_eq!(starts[first_forward].command, forward.command);
+    assert!(
+        (forward.command[0] - 0.3).abs() < 0.05,
+        "{:?}",
+        forward.command
+    );
 }
 
 #[test]

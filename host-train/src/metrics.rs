@@ -3,6 +3,7 @@
 //! `metrics.csv` the same rows go to a TensorBoard event file ([`tfevents`]), one scalar
 //! per key (`group/name`) with the iteration as the step.
 
+pub mod compare;
 pub mod tfevents;
 
 use host_sim::plot::{write_panels, Line, Panel};

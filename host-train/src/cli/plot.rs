@@ -1,36 +1,39 @@
-//! `hexapod plot`: draw a run's or a checkpoint's `metrics.csv` as the training plots.
+//! `hexapod plot`: draw a run's or a checkpoint's `metrics.csv` as the training plots, or
+//! several runs' learning curves on one axis (iterations, environment steps, training time).
 
+use crate::metrics::compare::{write_comparison, XAxis, COMPARED_KEYS};
 use crate::metrics::MetricsLog;
-use anyhow::anyhow;
-use std::path::PathBuf;
+use anyhow::{anyhow, Context};
+use std::path::{Path, PathBuf};
 
 /// Arguments of `hexapod plot`.
 #[derive(clap::Args, Debug)]
 pub struct PlotArgs {
-    /// A run or checkpoint directory (holding `metrics.csv`), or a CSV file.
-    pub metrics: PathBuf,
-    /// Where to write the PNGs (default: `plots/` beside the CSV).
+    /// A run or checkpoint directory (holding `metrics.csv`), or a CSV file; several (each
+    /// optionally `LABEL=PATH`) draw their learning curves side by side (`compare_<x>.png`).
+    #[arg(required = true, num_args = 1..)]
+    pub metrics: Vec<PathBuf>,
+    /// Where to write the PNGs (default: `plots/` beside the CSV; required to compare).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Drop the rows after this iteration (plots that end at a checkpoint).
     #[arg(long)]
     pub until: Option<usize>,
+    /// Compare learning curves against this axis (implied by several runs: training time).
+    #[arg(long, value_enum)]
+    pub x: Option<XAxis>,
+    /// Comparison curves: the moving mean over this many iterations.
+    #[arg(long, default_value_t = 50)]
+    pub smooth: usize,
 }
 
 /// Runs the subcommand.
 pub fn run(args: PlotArgs) -> anyhow::Result<()> {
-    let csv = if args.metrics.is_dir() {
-        args.metrics.join("metrics.csv")
-    } else {
-        args.metrics.clone()
-    };
-    let mut log = MetricsLog::read_csv(&csv).map_err(|e| anyhow!(e))?;
-    if let Some(last) = args.until {
-        log.truncate_after(last as f64);
+    if args.metrics.len() > 1 || args.x.is_some() {
+        return compare(&args);
     }
-    if log.rows().is_empty() {
-        anyhow::bail!("{}: no rows to plot", csv.display());
-    }
+    let (_, csv) = labelled_csv(&args.metrics[0]);
+    let log = read_log(&csv, args.until)?;
     let out = args.out.unwrap_or_else(|| {
         csv.parent()
             .unwrap_or(std::path::Path::new("."))
@@ -45,4 +48,67 @@ pub fn run(args: PlotArgs) -> anyhow::Result<()> {
         out.display()
     );
     Ok(())
+}
+
+/// Several runs' curves in `<out>/compare_<axis>.png`.
+fn compare(args: &PlotArgs) -> anyhow::Result<()> {
+    let out = args
+        .out
+        .as_ref()
+        .context("comparing runs needs --out DIR for the plot")?;
+    let axis = args.x.unwrap_or(XAxis::WallClock);
+    let mut runs = Vec::new();
+    for arg in &args.metrics {
+        let (label, csv) = labelled_csv(arg);
+        runs.push((label, read_log(&csv, args.until)?));
+    }
+    std::fs::create_dir_all(out)?;
+    let name = match axis {
+        XAxis::Iteration => "compare_iteration.png",
+        XAxis::EnvSteps => "compare_env_steps.png",
+        XAxis::WallClock => "compare_wall_clock.png",
+    };
+    let path = out.join(name);
+    let panels =
+        write_comparison(&path, &runs, COMPARED_KEYS, axis, args.smooth).map_err(|e| anyhow!(e))?;
+    println!(
+        "{} runs -> {} panels in {}",
+        runs.len(),
+        panels,
+        path.display()
+    );
+    Ok(())
+}
+
+/// `LABEL=PATH` or `PATH` (labelled by its directory's name) -> (label, the CSV file).
+fn labelled_csv(arg: &Path) -> (String, PathBuf) {
+    let text = arg.to_string_lossy();
+    let (label, path) = match text.split_once('=') {
+        Some((label, path)) if !label.is_empty() => (Some(label.to_string()), PathBuf::from(path)),
+        _ => (None, arg.to_path_buf()),
+    };
+    let csv = if path.is_dir() {
+        path.join("metrics.csv")
+    } else {
+        path
+    };
+    let label = label.unwrap_or_else(|| {
+        let dir = csv.parent().unwrap_or(Path::new("."));
+        dir.file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| csv.display().to_string())
+    });
+    (label, csv)
+}
+
+/// The CSV's rows (up to `until`), refused when none are left.
+fn read_log(csv: &Path, until: Option<usize>) -> anyhow::Result<MetricsLog> {
+    let mut log = MetricsLog::read_csv(csv).map_err(|e| anyhow!(e))?;
+    if let Some(last) = until {
+        log.truncate_after(last as f64);
+    }
+    if log.rows().is_empty() {
+        anyhow::bail!("{}: no rows to plot", csv.display());
+    }
+    Ok(log)
 }

@@ -111,6 +111,9 @@ pub struct CommandResult {
     pub tripod_score: f64,
     /// Fraction of steps with k = 0..=6 feet on the ground.
     pub feet_down_fraction: [f64; 7],
+    /// Each leg's fraction of steps in stance (its duty factor), legs in joint order (RF,
+    /// RM, RR, LF, LM, LR): a tripod gait has six alike, a leg that never lifts shows 1.
+    pub stance_fraction_per_leg: [f64; NUM_LEGS],
     /// Error of the mean speed along the command, percent of the commanded speed (the yaw
     /// rate for a pure turn): how well the average gait tracks, without the within-stride
     /// oscillation that `lin_vel_error_m_s` includes.
@@ -370,6 +373,7 @@ pub fn track_command(
     let (mut lin_err, mut yaw_err, mut mean_v, mut samples) = (0.0f64, 0.0f64, [0.0f64; 3], 0usize);
     let (mut tripod, mut contact_samples) = (0usize, 0usize);
     let mut feet_down = [0usize; 7];
+    let mut leg_stance = [0usize; NUM_LEGS];
     for step in 0..steps {
         let act = ppo.act(&obs, true)?;
         if let (Some((rec, t0_s)), Some(sim)) = (recording.as_mut(), env.sim()) {
@@ -408,6 +412,9 @@ pub fn track_command(
                 let mask = contact_mask(p);
                 tripod += usize::from(mask == TRIPOD_A_MASK || mask == TRIPOD_B_MASK);
                 feet_down[mask.count_ones() as usize] += 1;
+                for (leg, n) in leg_stance.iter_mut().enumerate() {
+                    *n += usize::from(mask & (1 << leg) != 0);
+                }
                 contact_samples += 1;
             }
             if !act.estimate.is_empty() {
@@ -434,27 +441,29 @@ pub fn track_command(
         fall_rate: fell.iter().filter(|&&f| f).count() as f64 / n as f64,
         tripod_score: tripod as f64 / contact_samples.max(1) as f64,
         feet_down_fraction: feet_down.map(|k| k as f64 / contact_samples.max(1) as f64),
+        stance_fraction_per_leg: leg_stance.map(|k| k as f64 / contact_samples.max(1) as f64),
     })
 }
 
 /// The header of the per-command table.
 pub fn table_header() -> String {
     format!(
-        "{:>22} {:>12} {:>12} {:>24} {:>10} {:>10} {:>10}",
+        "{:>22} {:>12} {:>12} {:>24} {:>10} {:>10} {:>10}  {}",
         "command (vx,vy,wz)",
         "lin err m/s",
         "yaw err r/s",
         "mean (vx,vy,wz)",
         "speed err",
         "fall rate",
-        "tripod"
+        "tripod",
+        "stance % RF RM RR LF LM LR"
     )
 }
 
 /// One command's row of the table.
 pub fn table_row(r: &CommandResult) -> String {
     format!(
-        "{:>22} {:>12.3} {:>12.3} {:>24} {:>9.0}% {:>10.2} {:>10.2}",
+        "{:>22} {:>12.3} {:>12.3} {:>24} {:>9.0}% {:>10.2} {:>10.2}  {}",
         format!(
             "({:.1},{:.1},{:.1})",
             r.command[0], r.command[1], r.command[2]
@@ -467,7 +476,10 @@ pub fn table_row(r: &CommandResult) -> String {
         ),
         r.speed_error_pct,
         r.fall_rate,
-        r.tripod_score
+        r.tripod_score,
+        r.stance_fraction_per_leg
+            .map(|f| format!("{:>2.0}", 100.0 * f))
+            .join(" ")
     )
 }
 

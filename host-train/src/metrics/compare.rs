@@ -46,14 +46,12 @@ pub fn x_coordinates(log: &MetricsLog, axis: XAxis) -> Vec<Option<f64>> {
     log.rows()
         .iter()
         .map(|row| {
-            let time_s = row.get("perf/collect_s").copied().unwrap_or(f64::NAN)
-                + row.get("perf/update_s").copied().unwrap_or(f64::NAN);
+            let get = |key: &str| row.get(key).copied().unwrap_or(f64::NAN);
+            let time_s = || get("perf/collect_s") + get("perf/update_s");
             let step = match axis {
                 XAxis::Iteration => return row.get("iteration").copied(),
-                XAxis::WallClock => time_s / 3600.0,
-                XAxis::EnvSteps => {
-                    row.get("perf/env_steps_per_s").copied().unwrap_or(f64::NAN) * time_s / 1e6
-                }
+                XAxis::WallClock => time_s() / 3600.0,
+                XAxis::EnvSteps => get("perf/env_steps_per_s") * time_s() / 1e6,
             };
             if !step.is_finite() {
                 return None;
@@ -64,14 +62,19 @@ pub fn x_coordinates(log: &MetricsLog, axis: XAxis) -> Vec<Option<f64>> {
         .collect()
 }
 
-/// `key` against `axis`, each point the mean of the last `window` finite values (fewer at
-/// the start).
-pub fn smoothed_curve(log: &MetricsLog, key: &str, axis: XAxis, window: usize) -> Vec<(f64, f64)> {
+/// `key` against the rows' x coordinates `xs` ([`x_coordinates`]), each point the mean of
+/// the last `window` finite values (fewer at the start).
+pub fn smoothed_curve(
+    log: &MetricsLog,
+    key: &str,
+    xs: &[Option<f64>],
+    window: usize,
+) -> Vec<(f64, f64)> {
     let window = window.max(1);
     let mut recent = std::collections::VecDeque::with_capacity(window);
     let mut sum = 0.0;
     let mut points = Vec::new();
-    for (row, x) in log.rows().iter().zip(x_coordinates(log, axis)) {
+    for (row, &x) in log.rows().iter().zip(xs) {
         let Some(y) = row.get(key).copied().filter(|y| y.is_finite()) else {
             continue;
         };
@@ -97,13 +100,18 @@ pub fn write_comparison(
     axis: XAxis,
     window: usize,
 ) -> Result<usize, String> {
+    let xs: Vec<Vec<Option<f64>>> = runs
+        .iter()
+        .map(|(_, log)| x_coordinates(log, axis))
+        .collect();
     let mut panels = Vec::new();
     for (key, y_label) in keys {
         let lines: Vec<Line> = runs
             .iter()
+            .zip(&xs)
             .enumerate()
-            .map(|(i, (label, log))| {
-                Line::nth(i, label.as_str(), smoothed_curve(log, key, axis, window))
+            .map(|(i, ((label, log), xs))| {
+                Line::nth(i, label.as_str(), smoothed_curve(log, key, xs, window))
             })
             .filter(|l| !l.points.is_empty())
             .collect();
@@ -181,7 +189,8 @@ mod tests {
             (3.0, 1.0, 0.0, 1.0, Some(0.0)),
             (4.0, f64::NAN, 0.0, 1.0, Some(0.6)),
         ]);
-        let c = smoothed_curve(&l, "tracking/lin_vel_error_m_s", XAxis::Iteration, 2);
+        let key = "tracking/lin_vel_error_m_s";
+        let c = smoothed_curve(&l, key, &x_coordinates(&l, XAxis::Iteration), 2);
         let expect = [(0.0, 0.4), (2.0, 0.3), (3.0, 0.1), (4.0, 0.3)];
         assert_eq!(c.len(), expect.len(), "{c:?}");
         for (p, e) in c.iter().zip(expect) {
@@ -192,7 +201,7 @@ mod tests {
         }
         // A row without timing has no place on the time axis (its value still counts in
         // the window of the next point).
-        let t = smoothed_curve(&l, "tracking/lin_vel_error_m_s", XAxis::WallClock, 2);
+        let t = smoothed_curve(&l, key, &x_coordinates(&l, XAxis::WallClock), 2);
         assert_eq!(t.len(), 3, "{t:?}");
         assert!((t[2].0 - 4.0 / 3600.0).abs() < 1e-12 && (t[2].1 - 0.1).abs() < 1e-12);
     }

@@ -8,6 +8,7 @@ use crate::priors::generate::{generate_clip, ClipReport, GeneratorConfig};
 use crate::priors::plot::plot_clip;
 use crate::priors::sim_tracking::{replay_clip, ReplayConfig, ReplayReport};
 use anyhow::{bail, Context};
+use hexapod_core::robot::NUM_LEGS;
 use host_sim::robot::RobotWorld;
 use host_sim::terrain::{Terrain, TerrainConfig};
 use host_sim::urdf_model::{default_urdf_path, UrdfModel};
@@ -35,6 +36,11 @@ pub struct PriorsArgs {
     /// climbing gait (`assets/priors-climb` is made with 0.14).
     #[arg(long, default_value_t = GeneratorConfig::default().swing_clearance_m)]
     pub swing_clearance_m: f64,
+    /// Swing frames of each leg per 30-frame (0.6 s) cycle: 13 gives a duty factor of 0.57
+    /// with two short six-foot support phases per cycle, 15 a duty factor of 0.5 in which
+    /// one tripod touches down as the other lifts off.
+    #[arg(long, default_value_t = GeneratorConfig::default().swing_frames)]
+    pub swing_frames: usize,
 }
 
 /// Runs the subcommand.
@@ -51,6 +57,7 @@ pub fn run(args: PriorsArgs) -> anyhow::Result<()> {
             }
             let cfg = GeneratorConfig {
                 swing_clearance_m: args.swing_clearance_m,
+                swing_frames: args.swing_frames,
                 ..GeneratorConfig::default()
             };
             let (clips, reports) = generate(&args.out, &cfg, !args.no_plots)?;
@@ -204,6 +211,9 @@ fn regenerate_command(args: &PriorsArgs) -> String {
     if args.swing_clearance_m != GeneratorConfig::default().swing_clearance_m {
         command += &format!(" --swing-clearance-m {}", args.swing_clearance_m);
     }
+    if args.swing_frames != GeneratorConfig::default().swing_frames {
+        command += &format!(" --swing-frames {}", args.swing_frames);
+    }
     command + " --validate"
 }
 
@@ -235,15 +245,16 @@ fn report_markdown(
             s,
             "\n## Replay in host-sim (drives tracking the joint trajectories)\n"
         );
-        let _ = writeln!(s, "| clip | result | command (vx, vy, wz) | simulated mean (vx, vy, wz) | planar error / tolerance m/s | yaw-rate error / tolerance rad/s | max tilt rad | min height m | joint RMS vs clip rad |");
-        let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
+        let _ = writeln!(s, "| clip | result | command (vx, vy, wz) | simulated mean (vx, vy, wz) | planar error / tolerance m/s | yaw-rate error / tolerance rad/s | max tilt rad | min height m | joint RMS vs clip rad | tripod score (clip's contact flags) | all feet down |");
+        let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|");
         for r in replays {
             let _ = writeln!(
                 s,
-                "| {} | {} | ({:+.2}, {:+.2}, {:+.2}) | ({:+.3}, {:+.3}, {:+.3}) | {:.3} / {:.3} | {:.3} / {:.3} | {:.3} | {:.3} | {:.3} |",
+                "| {} | {} | ({:+.2}, {:+.2}, {:+.2}) | ({:+.3}, {:+.3}, {:+.3}) | {:.3} / {:.3} | {:.3} / {:.3} | {:.3} | {:.3} | {:.3} | {:.2} ({:.2}) | {:.2} |",
                 r.name, if r.passed { "pass" } else { "FAIL" }, r.command[0], r.command[1], r.command[2],
                 r.mean_velocity[0], r.mean_velocity[1], r.mean_velocity[2], r.lin_error_m_s, r.lin_tolerance_m_s,
-                r.yaw_error_rad_s, r.yaw_tolerance_rad_s, r.max_tilt_rad, r.min_height_m, r.joint_rms_rad
+                r.yaw_error_rad_s, r.yaw_tolerance_rad_s, r.max_tilt_rad, r.min_height_m, r.joint_rms_rad,
+                r.tripod_score, r.clip_tripod_score, r.feet_down_fraction[NUM_LEGS]
             );
         }
     }

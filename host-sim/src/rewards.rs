@@ -7,8 +7,9 @@
 //! ablations g+s, g+l, g+s+l).
 //!
 //! One term is not in Table I and is off by default: `tripod_contact` rewards each step
-//! whose stance set is exactly one of the two tripods while the robot is commanded to move
-//! (see `configs/flat-tripod.toml` for why the shipped presets switch it on).
+//! whose stance set is exactly one of the two tripods while the robot is commanded to move.
+//! `configs/flat-tripod.toml` leaves it off (the gait is the style reward's); the rough-terrain
+//! presets, which continue the behavior-cloned `assets/policies/flat-tripod`, keep it.
 
 use hexapod_core::robot::{NUM_JOINTS, NUM_LEGS, TRIPOD_A_MASK, TRIPOD_B_MASK};
 

@@ -300,7 +300,8 @@ pub struct AmpConfig {
     /// update's PPO minibatches (0: on every one, as AMP_for_hardware does). With few robots
     /// per iteration every minibatch gives the discriminator many more steps per environment
     /// sample than the reference implementations take (AMP_for_hardware: 20 steps per
-    /// 4,096 x 24 samples; `flat-tripod`: 6 per 128 x 24), and it outruns the policy.
+    /// 4,096 x 24 samples; 128 x 24 in 6 minibatches: 6), and it outruns the policy;
+    /// `flat-tripod` takes 1.
     pub steps_per_iteration: usize,
 }
 

@@ -6,6 +6,7 @@ use crate::priors::command::default_commands;
 use crate::priors::dataset::MotionDataset;
 use crate::priors::generate::{generate_clip, ClipReport, GeneratorConfig};
 use crate::priors::plot::plot_clip;
+use crate::priors::schedule::TripodSchedule;
 use crate::priors::sim_tracking::{replay_clip, ReplayConfig, ReplayReport};
 use anyhow::{bail, Context};
 use hexapod_core::robot::NUM_LEGS;
@@ -60,6 +61,9 @@ pub fn run(args: PriorsArgs) -> anyhow::Result<()> {
                 swing_frames: args.swing_frames,
                 ..GeneratorConfig::default()
             };
+            // Refused before anything is written.
+            TripodSchedule::new(cfg.frames_per_cycle, cfg.swing_frames)
+                .context("--swing-frames")?;
             let (clips, reports) = generate(&args.out, &cfg, !args.no_plots)?;
             (clips, args.out.clone(), Some(reports))
         }

@@ -266,10 +266,15 @@ pub fn load(dir: &Path, ppo: &mut Ppo, with_optimizer: bool) -> Result<(), Check
 }
 
 /// Whether a checkpoint saved with `saved` has the networks `cfg` builds (policy,
-/// discriminator and RMA encoder shapes); the error says which differ.
+/// discriminator and RMA encoder shapes); the error says which differ. The initial action
+/// noise is not a shape: the checkpoint carries its learned log-std.
 pub fn same_networks(saved: &TrainConfig, cfg: &TrainConfig) -> Result<(), String> {
     let mut differ = Vec::new();
-    if saved.policy != cfg.policy {
+    let shape = |p: &crate::config::PolicyConfig| crate::config::PolicyConfig {
+        init_noise_std: 0.0,
+        ..p.clone()
+    };
+    if shape(&saved.policy) != shape(&cfg.policy) {
         differ.push("[policy]");
     }
     if saved.amp.discriminator_hidden != cfg.amp.discriminator_hidden {
@@ -391,6 +396,19 @@ mod tests {
         assert!((b.opt.lr - 0.0042).abs() < 1e-6);
         assert_eq!(b.ac.norm_actor.count(), 3.0);
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn the_initial_action_noise_is_not_a_network_shape() {
+        let saved = tiny();
+        let mut cfg = saved.clone();
+        cfg.policy.init_noise_std = 1.0;
+        assert_eq!(same_networks(&saved, &cfg), Ok(()));
+        cfg.policy.actor_hidden = vec![16];
+        cfg.amp.discriminator_hidden = vec![4];
+        let err = same_networks(&saved, &cfg).unwrap_err();
+        assert!(err.contains("[policy]"), "{err}");
+        assert!(err.contains("amp.discriminator_hidden"), "{err}");
     }
 
     #[test]

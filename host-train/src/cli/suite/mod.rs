@@ -93,19 +93,28 @@ pub fn validate(o: &SuiteOptions) -> anyhow::Result<Vec<&'static str>> {
         .collect())
 }
 
-/// A short name for a checkpoint: its directory, with the run's for `<run>/checkpoints/model_N`.
+/// A short name for a checkpoint: its directory, with the run's for `<run>/checkpoints/model_N`
+/// and the report's for a checkpoint committed beside its report, `<report>/checkpoint-model_N`.
 pub fn controller_name(checkpoint: &Path) -> String {
     let leaf = checkpoint
         .file_name()
         .map(|s| s.to_string_lossy().to_string())
         .unwrap_or_else(|| checkpoint.display().to_string());
-    if leaf.starts_with("model_") {
-        if let Some(run) = checkpoint
-            .parent()
-            .and_then(|p| p.parent())
+    let ancestor = |up: usize| {
+        checkpoint
+            .ancestors()
+            .nth(up)
             .and_then(|p| p.file_name())
-        {
-            return format!("{}/{leaf}", run.to_string_lossy());
+            .map(|s| s.to_string_lossy().to_string())
+    };
+    if leaf.starts_with("model_") {
+        if let Some(run) = ancestor(2) {
+            return format!("{run}/{leaf}");
+        }
+    }
+    if let Some(model) = leaf.strip_prefix("checkpoint-") {
+        if let Some(report) = ancestor(1) {
+            return format!("{report}/{model}");
         }
     }
     leaf
@@ -442,6 +451,16 @@ mod tests {
         assert_eq!(
             controller_name(Path::new("target/ci-pretrain-ppo/checkpoints/model_000001")),
             "ci-pretrain-ppo/model_000001"
+        );
+        assert_eq!(
+            controller_name(Path::new(
+                "assets/reports/amp-ablation-flat/gl-s1/checkpoint-model_006000"
+            )),
+            "gl-s1/model_006000"
+        );
+        assert_eq!(
+            controller_name(Path::new("checkpoint-model_000100")),
+            "checkpoint-model_000100"
         );
     }
 }

@@ -128,6 +128,8 @@ pub struct EnvConfig {
     /// Probability that an episode starts from a random reference state (a prior's pose
     /// and velocities) instead of standing at the nominal pose, when the learner has given
     /// reference states (AMP's reference state initialization; AMP_for_hardware uses 0.85).
+    /// The trainer loads the motion priors for them whenever this is above 0, with or
+    /// without the style reward.
     pub reference_init_probability: f32,
     /// An episode started from a reference state is commanded the velocity of that state's
     /// motion (its clip's command) until the command is first resampled, instead of a

@@ -91,13 +91,15 @@ impl MotionPriorSource for SyntheticTripod {
 #[error("motion priors: {0}")]
 pub struct PriorSourceError(pub String);
 
-/// The prior source a config asks for (`None` when the style reward is off). Dataset
-/// priors must cover the configured command range ([`MotionDataset::check_command_coverage`]).
+/// The prior source a config asks for: for the style reward, or for episodes started from
+/// reference states (`sim.reference_init_probability` above 0, which then holds without the
+/// style reward too); `None` when neither is on. Dataset priors must cover the configured
+/// command range ([`MotionDataset::check_command_coverage`]).
 pub fn load_prior_source(
     cfg: &crate::config::TrainConfig,
 ) -> Result<Option<Box<dyn MotionPriorSource>>, PriorSourceError> {
     use crate::config::PriorKind;
-    if !cfg.amp_enabled() {
+    if !cfg.amp_enabled() && cfg.resolved_sim().reference_init_probability <= 0.0 {
         return Ok(None);
     }
     match cfg.amp.prior_kind {
@@ -186,5 +188,20 @@ mod tests {
             load_prior_source(&cfg).unwrap().is_none(),
             "no priors needed without style reward"
         );
+    }
+
+    /// Reference-state starts need the priors with the style reward off too: a config
+    /// that asks for them gets them rather than silently none.
+    #[test]
+    fn reference_starts_load_the_priors_without_the_style_reward() {
+        let mut cfg = TrainConfig::default();
+        cfg.amp.prior_kind = PriorKind::Dataset;
+        cfg.amp.priors_dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/priors").into();
+        cfg.rewards.style = false;
+        cfg.sim.reference_init_probability = 0.85;
+        let src = load_prior_source(&cfg)
+            .unwrap()
+            .expect("priors for the starts");
+        assert!(!src.reference_states().is_empty());
     }
 }

@@ -99,7 +99,7 @@ pub fn load_prior_source(
     cfg: &crate::config::TrainConfig,
 ) -> Result<Option<Box<dyn MotionPriorSource>>, PriorSourceError> {
     use crate::config::PriorKind;
-    if !cfg.amp_enabled() && cfg.resolved_sim().reference_init_probability <= 0.0 {
+    if !cfg.amp_enabled() && cfg.sim.reference_init_probability <= 0.0 {
         return Ok(None);
     }
     match cfg.amp.prior_kind {

@@ -159,20 +159,46 @@ pub fn resolve_dir(path: &Path) -> Result<std::path::PathBuf, CheckpointError> {
     })
 }
 
-/// A short name for outputs derived from a checkpoint path: its last two components
-/// (`flat-tripod`, `my-run-model_000400`).
-pub fn display_name(dir: &Path) -> String {
-    let parts: Vec<String> = dir
-        .components()
-        .rev()
-        .take(3)
-        .map(|c| c.as_os_str().to_string_lossy().into_owned())
-        .collect();
-    match parts.as_slice() {
-        [model, checkpoints, run, ..] if checkpoints == "checkpoints" => format!("{run}-{model}"),
-        [last, ..] => last.clone(),
-        [] => "checkpoint".into(),
+/// The run (or report) a checkpoint belongs to, and its model name:
+/// `<run>/checkpoints/model_N` gives `(Some(run), "model_N")`, a checkpoint committed beside
+/// its report, `<report>/checkpoint-model_N`, gives `(Some(report), "model_N")`, any other
+/// directory `(None, its name)`.
+pub fn name_parts(dir: &Path) -> (Option<String>, String) {
+    let component = |up: usize| {
+        dir.ancestors()
+            .nth(up)
+            .and_then(|p| p.file_name())
+            .map(|s| s.to_string_lossy().into_owned())
+    };
+    let Some(leaf) = component(0) else {
+        return (None, "checkpoint".into());
+    };
+    if leaf.starts_with("model_") && component(1).as_deref() == Some("checkpoints") {
+        if let Some(run) = component(2) {
+            return (Some(run), leaf);
+        }
     }
+    if let Some(model) = leaf.strip_prefix("checkpoint-") {
+        if let Some(report) = component(1) {
+            return (Some(report), model.to_string());
+        }
+    }
+    (None, leaf)
+}
+
+/// A short name for a checkpoint, its [`name_parts`] joined by `separator` (`flat-tripod`,
+/// `my-run-model_000400` for file names, `my-run/model_000400` for tables).
+pub fn display_name_with(dir: &Path, separator: &str) -> String {
+    match name_parts(dir) {
+        (Some(run), model) => format!("{run}{separator}{model}"),
+        (None, leaf) => leaf,
+    }
+}
+
+/// A short name for outputs derived from a checkpoint path (a file name: `flat-tripod`,
+/// `my-run-model_000400`, `gl-s1-model_006000`).
+pub fn display_name(dir: &Path) -> String {
+    display_name_with(dir, "-")
 }
 
 /// Reads the resolved config saved in a checkpoint directory.
@@ -356,6 +382,17 @@ mod tests {
         assert_eq!(
             display_name(Path::new("assets/policies/flat-tripod")),
             "flat-tripod"
+        );
+        assert_eq!(
+            display_name(Path::new(
+                "assets/reports/amp-ablation-flat/gl-s1/checkpoint-model_006000"
+            )),
+            "gl-s1-model_006000"
+        );
+        assert_eq!(
+            display_name(Path::new("some/model_000100")),
+            "model_000100",
+            "a model directory outside a run's checkpoints/ keeps its own name"
         );
         let err = resolve_dir(&run.join("checkpoints"))
             .unwrap_err()

@@ -93,31 +93,11 @@ pub fn validate(o: &SuiteOptions) -> anyhow::Result<Vec<&'static str>> {
         .collect())
 }
 
-/// A short name for a checkpoint: its directory, with the run's for `<run>/checkpoints/model_N`
-/// and the report's for a checkpoint committed beside its report, `<report>/checkpoint-model_N`.
+/// A short name for a checkpoint in the tables: its directory, with the run's for
+/// `<run>/checkpoints/model_N` and the report's for a checkpoint committed beside its report,
+/// `<report>/checkpoint-model_N` ([`crate::checkpoint::name_parts`]).
 pub fn controller_name(checkpoint: &Path) -> String {
-    let leaf = checkpoint
-        .file_name()
-        .map(|s| s.to_string_lossy().to_string())
-        .unwrap_or_else(|| checkpoint.display().to_string());
-    let ancestor = |up: usize| {
-        checkpoint
-            .ancestors()
-            .nth(up)
-            .and_then(|p| p.file_name())
-            .map(|s| s.to_string_lossy().to_string())
-    };
-    if leaf.starts_with("model_") {
-        if let Some(run) = ancestor(2) {
-            return format!("{run}/{leaf}");
-        }
-    }
-    if let Some(model) = leaf.strip_prefix("checkpoint-") {
-        if let Some(report) = ancestor(1) {
-            return format!("{report}/{model}");
-        }
-    }
-    leaf
+    crate::checkpoint::display_name_with(checkpoint, "/")
 }
 
 fn trained_on(cfg: &TrainConfig) -> String {

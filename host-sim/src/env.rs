@@ -82,7 +82,11 @@ struct Slot {
     prev_targets: [f32; NUM_JOINTS],
     last_qdot: [f32; NUM_JOINTS],
     history: ProprioHistory,
+    /// Policy steps since the episode started.
     step: usize,
+    /// Steps added to `step` for the episode clock (time-out, pushes, command resampling):
+    /// 0, but for the episode running when [`VecEnv::randomize_episode_clocks`] was called.
+    clock_offset: usize,
     friction: f32,
     last_push_m_s: [f32; 3],
     term_sums: [f32; TERM_NAMES.len()],
@@ -169,6 +173,7 @@ impl HexapodEnv {
                     last_qdot: [0.0; NUM_JOINTS],
                     history: ProprioHistory::filled_with(&[0.0; PROPRIO_DIM]),
                     step: 0,
+                    clock_offset: 0,
                     friction: 1.0,
                     last_push_m_s: [0.0; 3],
                     term_sums: [0.0; TERM_NAMES.len()],
@@ -321,6 +326,13 @@ impl VecEnv for HexapodEnv {
 
     fn set_reference_states(&mut self, states: Arc<[ReferenceStart]>) {
         HexapodEnv::set_reference_states(self, states);
+    }
+
+    fn randomize_episode_clocks(&mut self) {
+        let max_steps = self.max_episode_steps;
+        for s in &mut self.slots {
+            s.clock_offset = s.rng.gen_range(0..max_steps.max(1));
+        }
     }
 
     fn set_command(&mut self, i: usize, command: [f32; 3]) {
@@ -479,7 +491,10 @@ impl Slot {
             return;
         }
         let walked_m = self.command_progress.progress_m();
-        let remaining_s = config.episode_length_s - self.step as f32 * POLICY_DT_S;
+        // What a fall cut short; none after a time-out, also one the episode clock brought
+        // forward ([`VecEnv::randomize_episode_clocks`]).
+        let clock = self.step + self.clock_offset;
+        let remaining_s = config.episode_length_s - clock as f32 * POLICY_DT_S;
         let commanded_m = self.command_progress.commanded_m(self.command, remaining_s);
         let rows = config.terrain.rows;
         self.level = match curriculum_step(walked_m, commanded_m, config.terrain.tile_size_m) {
@@ -579,6 +594,7 @@ impl Slot {
         self.prev_targets = q;
         self.last_qdot = reference.map_or([0.0; NUM_JOINTS], |r| r.qdot_rad_s);
         self.step = 0;
+        self.clock_offset = 0;
         self.last_push_m_s = [0.0; 3];
         self.term_sums = [0.0; TERM_NAMES.len()];
         self.state = self.robot.state();
@@ -714,7 +730,8 @@ impl Slot {
             *acc += v;
         }
         let terminated = terminated(&s, self.contacts.trunk, config.max_tilt_deg);
-        let time_out = self.step >= max_steps;
+        let clock = self.step + self.clock_offset;
+        let time_out = clock >= max_steps;
         let done = terminated || time_out;
         let amp_next = observe::amp(&s);
         self.last_qdot = s.qdot_rad_s;
@@ -735,7 +752,7 @@ impl Slot {
         }
         // Pushes and command resampling.
         let push_every = (config.push.interval_s / POLICY_DT_S).round().max(1.0) as usize;
-        if config.push.enabled && self.step.is_multiple_of(push_every) {
+        if config.push.enabled && clock.is_multiple_of(push_every) {
             let m = config.push.max_vel_xy_m_s;
             let dv = [
                 uniform(&mut self.rng, [-m, m]),
@@ -748,7 +765,7 @@ impl Slot {
         let resample_every = (config.commands.resampling_time_s / POLICY_DT_S)
             .round()
             .max(1.0) as usize;
-        if self.step.is_multiple_of(resample_every) {
+        if clock.is_multiple_of(resample_every) {
             self.sample_command(config);
         }
         let proprio = self.proprio(config);

@@ -68,6 +68,11 @@ pub trait VecEnv {
     /// observations of the next `step` or `reset` carry it. Observations already returned
     /// keep the old command ([`Observations::set_command`] rewrites them).
     fn set_command(&mut self, i: usize, command: [f32; 3]);
+    /// Moves each robot's episode clock to a random step of its episode (rsl_rl's
+    /// `init_at_random_ep_len`), so that the running episodes time out, get pushed and
+    /// resample their commands at different moments instead of all at once; later episodes
+    /// start at 0 as usual. The default ignores it (the trainer's point-mass stand-in).
+    fn randomize_episode_clocks(&mut self) {}
     /// Reference states that episodes may start from (reference state initialization);
     /// environments without it ignore them.
     fn set_reference_states(

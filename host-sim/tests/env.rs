@@ -314,6 +314,45 @@ fn time_out_is_flagged_for_bootstrapping() {
 }
 
 #[test]
+fn randomized_episode_clocks_spread_the_first_time_outs_then_episodes_run_in_full() {
+    let mut c = quiet_config(6);
+    c.episode_length_s = 0.2; // 10 policy steps
+    let mut env = HexapodEnv::new(c).unwrap();
+    env.reset();
+    env.randomize_episode_clocks();
+    let zeros = [0.0; 6 * NUM_JOINTS];
+    let mut first_time_out = [None; 6];
+    let mut second_time_out = [None; 6];
+    for step in 1..=20 {
+        let r = env.step(&zeros);
+        for i in 0..6 {
+            assert!(!r.dones[i] || r.time_outs[i], "robot {i} fell standing");
+            if r.time_outs[i] {
+                if first_time_out[i].is_none() {
+                    first_time_out[i] = Some(step);
+                } else if second_time_out[i].is_none() {
+                    second_time_out[i] = Some(step);
+                }
+            }
+        }
+    }
+    let first: Vec<usize> = first_time_out.iter().map(|s| s.unwrap()).collect();
+    assert!(first.iter().all(|&s| (1..=10).contains(&s)), "{first:?}");
+    let distinct = first
+        .iter()
+        .collect::<std::collections::BTreeSet<_>>()
+        .len();
+    assert!(distinct >= 3, "first time-outs not spread: {first:?}");
+    for i in 0..6 {
+        assert_eq!(
+            second_time_out[i],
+            Some(first[i] + 10),
+            "robot {i}: the next episode runs its full 10 steps"
+        );
+    }
+}
+
+#[test]
 fn robots_spawned_on_stairs_and_blocks_stand() {
     // Spawns near a stair tile's platform edge put feet over the first step; each must
     // start above the ground under it (a foot inside the heightfield falls through it and

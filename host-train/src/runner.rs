@@ -121,10 +121,14 @@ impl Runner {
         })
     }
 
-    /// Continues from a checkpoint: weights, normalizers, optimizer state, iteration.
+    /// Continues from a checkpoint: weights, normalizers, optimizer state, iteration. The
+    /// robots' episode clocks start at random steps of their episodes, as the episodes of an
+    /// uninterrupted run are spread out by then (without it every robot would time out,
+    /// be pushed and resample its command at the same moments for hundreds of iterations).
     pub fn resume(&mut self, dir: &Path) -> Result<(), TrainError> {
         checkpoint::load(dir, &mut self.ppo, true)?;
         self.iteration = checkpoint::load_iteration(dir)?;
+        self.env.randomize_episode_clocks();
         self.last_checkpoint = Some(dir.to_path_buf());
         // Resuming into a run directory that has a history: keep it up to the checkpoint.
         let csv = self.run_dir.join("metrics.csv");

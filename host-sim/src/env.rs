@@ -486,6 +486,11 @@ impl Slot {
         self.command = self.fixed_command.unwrap_or(drawn);
     }
 
+    /// The episode clock: time-outs, pushes and command resampling follow it.
+    fn clock(&self) -> usize {
+        self.step + self.clock_offset
+    }
+
     fn update_curriculum(&mut self, config: &EnvConfig) {
         if !(config.curriculum && config.terrain.tiles) {
             return;
@@ -493,8 +498,7 @@ impl Slot {
         let walked_m = self.command_progress.progress_m();
         // What a fall cut short; none after a time-out, also one the episode clock brought
         // forward ([`VecEnv::randomize_episode_clocks`]).
-        let clock = self.step + self.clock_offset;
-        let remaining_s = config.episode_length_s - clock as f32 * POLICY_DT_S;
+        let remaining_s = config.episode_length_s - self.clock() as f32 * POLICY_DT_S;
         let commanded_m = self.command_progress.commanded_m(self.command, remaining_s);
         let rows = config.terrain.rows;
         self.level = match curriculum_step(walked_m, commanded_m, config.terrain.tile_size_m) {
@@ -730,7 +734,7 @@ impl Slot {
             *acc += v;
         }
         let terminated = terminated(&s, self.contacts.trunk, config.max_tilt_deg);
-        let clock = self.step + self.clock_offset;
+        let clock = self.clock();
         let time_out = clock >= max_steps;
         let done = terminated || time_out;
         let amp_next = observe::amp(&s);

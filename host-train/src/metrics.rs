@@ -5,6 +5,7 @@
 
 pub mod compare;
 pub mod tfevents;
+pub mod windows;
 
 use host_sim::plot::{write_panels, Line, Panel};
 use std::collections::{BTreeMap, BTreeSet};

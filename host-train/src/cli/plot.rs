@@ -1,7 +1,10 @@
 //! `hexapod plot`: draw a run's or a checkpoint's `metrics.csv` as the training plots, or
-//! several runs' learning curves on one axis (iterations, environment steps, training time).
+//! several runs' learning curves on one axis (iterations, environment steps, training time);
+//! with `--windows`, a table of the run's metrics averaged over ranges of iterations.
 
+use crate::config::TrainConfig;
 use crate::metrics::compare::{write_comparison, XAxis, COMPARED_KEYS};
+use crate::metrics::windows::{window_table, Window, DEFAULT_WINDOW_KEYS};
 use crate::metrics::MetricsLog;
 use anyhow::{anyhow, Context};
 use std::path::{Path, PathBuf};
@@ -25,10 +28,23 @@ pub struct PlotArgs {
     /// Comparison curves: the moving mean over this many iterations.
     #[arg(long, default_value_t = 50)]
     pub smooth: usize,
+    /// Print a Markdown table of the run's metrics averaged over these ranges of
+    /// iterations (`FIRST:LAST`, inclusive; e.g. `--windows 901:1000 5901:6000`) instead of
+    /// drawing plots. With the run's `config.toml` beside the CSV it adds the style
+    /// reward's share of its maximum (`style_weight x dt` per policy step).
+    #[arg(long, num_args = 1.., value_name = "FIRST:LAST")]
+    pub windows: Vec<Window>,
+    /// The metrics tabulated by `--windows` (default: discriminator outputs, style reward,
+    /// tracking errors, action std, env steps/s).
+    #[arg(long, value_delimiter = ',', requires = "windows")]
+    pub keys: Vec<String>,
 }
 
 /// Runs the subcommand.
 pub fn run(args: PlotArgs) -> anyhow::Result<()> {
+    if !args.windows.is_empty() {
+        return windows(&args);
+    }
     if args.metrics.len() > 1 || args.x.is_some() {
         return compare(&args);
     }
@@ -77,6 +93,36 @@ fn compare(args: &PlotArgs) -> anyhow::Result<()> {
         panels,
         path.display()
     );
+    Ok(())
+}
+
+/// Each run's window table on stdout.
+fn windows(args: &PlotArgs) -> anyhow::Result<()> {
+    let keys: Vec<String> = if args.keys.is_empty() {
+        DEFAULT_WINDOW_KEYS.iter().map(|k| k.to_string()).collect()
+    } else {
+        args.keys.clone()
+    };
+    for arg in &args.metrics {
+        let (label, csv) = labelled_csv(arg);
+        let log = read_log(&csv, args.until)?;
+        if let Some(unknown) = keys
+            .iter()
+            .find(|k| !log.rows().iter().any(|row| row.contains_key(k.as_str())))
+        {
+            anyhow::bail!("{}: no column `{unknown}`", csv.display());
+        }
+        let config = csv.with_file_name("config.toml");
+        let style_max = if config.is_file() {
+            let cfg = TrainConfig::load(&config)
+                .with_context(|| format!("reading the run's {}", config.display()))?;
+            Some(cfg.rewards.style_weight as f64 * hexapod_core::timing::POLICY_DT_S as f64)
+        } else {
+            None
+        };
+        println!("{label} ({})\n", csv.display());
+        println!("{}", window_table(&log, &keys, &args.windows, style_max));
+    }
     Ok(())
 }
 

@@ -30,8 +30,8 @@ pub struct PlotArgs {
     pub smooth: usize,
     /// Print a Markdown table of the run's metrics averaged over these ranges of
     /// iterations (`FIRST:LAST`, inclusive; e.g. `--windows 901:1000 5901:6000`) instead of
-    /// drawing plots. With the run's `config.toml` beside the CSV it adds the style
-    /// reward's share of its maximum (`style_weight x dt` per policy step).
+    /// drawing plots. With the run's `config.toml` beside the CSV, and the style reward on,
+    /// it adds the style reward's share of its maximum (`style_weight x dt` per policy step).
     #[arg(long, num_args = 1.., value_name = "FIRST:LAST")]
     pub windows: Vec<Window>,
     /// The metrics tabulated by `--windows` (default: discriminator outputs, style reward,
@@ -98,25 +98,29 @@ fn compare(args: &PlotArgs) -> anyhow::Result<()> {
 
 /// Each run's window table on stdout.
 fn windows(args: &PlotArgs) -> anyhow::Result<()> {
-    let keys: Vec<String> = if args.keys.is_empty() {
-        DEFAULT_WINDOW_KEYS.iter().map(|k| k.to_string()).collect()
-    } else {
-        args.keys.clone()
-    };
     for arg in &args.metrics {
         let (label, csv) = labelled_csv(arg);
         let log = read_log(&csv, args.until)?;
-        if let Some(unknown) = keys
-            .iter()
-            .find(|k| !log.rows().iter().any(|row| row.contains_key(k.as_str())))
-        {
+        let has = |key: &str| log.rows().iter().any(|row| row.contains_key(key));
+        // The default keys a run does not log are left out; a key asked for must exist.
+        let keys: Vec<String> = if args.keys.is_empty() {
+            DEFAULT_WINDOW_KEYS
+                .iter()
+                .filter(|k| has(k))
+                .map(|k| k.to_string())
+                .collect()
+        } else {
+            args.keys.clone()
+        };
+        if let Some(unknown) = keys.iter().find(|k| !has(k)) {
             anyhow::bail!("{}: no column `{unknown}`", csv.display());
         }
         let config = csv.with_file_name("config.toml");
         let style_max = if config.is_file() {
             let cfg = TrainConfig::load(&config)
                 .with_context(|| format!("reading the run's {}", config.display()))?;
-            Some(cfg.rewards.style_weight as f64 * hexapod_core::timing::POLICY_DT_S as f64)
+            cfg.amp_enabled()
+                .then(|| cfg.rewards.style_weight as f64 * hexapod_core::timing::POLICY_DT_S as f64)
         } else {
             None
         };

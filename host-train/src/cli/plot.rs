@@ -119,8 +119,9 @@ fn windows(args: &PlotArgs) -> anyhow::Result<()> {
         let style_max = if config.is_file() {
             let cfg = TrainConfig::load(&config)
                 .with_context(|| format!("reading the run's {}", config.display()))?;
-            cfg.amp_enabled()
-                .then(|| cfg.rewards.style_weight as f64 * hexapod_core::timing::POLICY_DT_S as f64)
+            cfg.amp_enabled().then_some(
+                cfg.rewards.style_weight as f64 * hexapod_core::timing::POLICY_DT_S as f64,
+            )
         } else {
             None
         };

@@ -34,8 +34,9 @@ pub struct PlotArgs {
     /// it adds the style reward's share of its maximum (`style_weight x dt` per policy step).
     #[arg(long, num_args = 1.., value_name = "FIRST:LAST")]
     pub windows: Vec<Window>,
-    /// The metrics tabulated by `--windows` (default: discriminator outputs, style reward,
-    /// tracking errors, action std, env steps/s).
+    /// The metrics tabulated by `--windows` (default: discriminator outputs and style reward,
+    /// left out when the run's `config.toml` has the style reward off; tracking errors, action
+    /// std, env steps/s).
     #[arg(long, value_delimiter = ',', requires = "windows")]
     pub keys: Vec<String>,
 }
@@ -102,11 +103,23 @@ fn windows(args: &PlotArgs) -> anyhow::Result<()> {
         let (label, csv) = labelled_csv(arg);
         let log = read_log(&csv, args.until)?;
         let has = |key: &str| log.rows().iter().any(|row| row.contains_key(key));
-        // The default keys a run does not log are left out; a key asked for must exist.
+        let config = csv.with_file_name("config.toml");
+        let cfg = if config.is_file() {
+            Some(
+                TrainConfig::load(&config)
+                    .with_context(|| format!("reading the run's {}", config.display()))?,
+            )
+        } else {
+            None
+        };
+        let amp_on = cfg.as_ref().is_none_or(|c| c.amp_enabled());
+        // The default keys a run does not log are left out, and so are the discriminator's
+        // and the style reward's when its config has the style reward off (logged as zeros);
+        // a key asked for must exist.
         let keys: Vec<String> = if args.keys.is_empty() {
             DEFAULT_WINDOW_KEYS
                 .iter()
-                .filter(|k| has(k))
+                .filter(|k| has(k) && (amp_on || !is_style_key(k)))
                 .map(|k| k.to_string())
                 .collect()
         } else {
@@ -115,20 +128,18 @@ fn windows(args: &PlotArgs) -> anyhow::Result<()> {
         if let Some(unknown) = keys.iter().find(|k| !has(k)) {
             anyhow::bail!("{}: no column `{unknown}`", csv.display());
         }
-        let config = csv.with_file_name("config.toml");
-        let style_max = if config.is_file() {
-            let cfg = TrainConfig::load(&config)
-                .with_context(|| format!("reading the run's {}", config.display()))?;
-            cfg.amp_enabled().then_some(
-                cfg.rewards.style_weight as f64 * hexapod_core::timing::POLICY_DT_S as f64,
-            )
-        } else {
-            None
-        };
+        let style_max = cfg
+            .filter(|c| c.amp_enabled())
+            .map(|c| c.rewards.style_weight as f64 * hexapod_core::timing::POLICY_DT_S as f64);
         println!("{label} ({})\n", csv.display());
         println!("{}", window_table(&log, &keys, &args.windows, style_max));
     }
     Ok(())
+}
+
+/// The discriminator's metrics and the style reward: zeros in a run without the style reward.
+fn is_style_key(key: &str) -> bool {
+    key.starts_with("amp/") || key == "reward/style"
 }
 
 /// `LABEL=PATH` or `PATH` (labelled by its directory's name) -> (label, the CSV file).

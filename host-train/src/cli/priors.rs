@@ -42,6 +42,12 @@ pub struct PriorsArgs {
     /// one tripod touches down as the other lifts off.
     #[arg(long, default_value_t = GeneratorConfig::default().swing_frames)]
     pub swing_frames: usize,
+    /// With --validate: passes of iterative learning control on the replay's joint targets
+    /// before the recorded replay (0: the clip's trajectories as they are, as the trainer's
+    /// tracked prior states are made). A diagnostic: how the clips play when the drives'
+    /// sag is corrected (assets/priors/README.md).
+    #[arg(long, default_value_t = 0, requires = "validate")]
+    pub learning_passes: usize,
 }
 
 /// Runs the subcommand.
@@ -69,7 +75,7 @@ pub fn run(args: PriorsArgs) -> anyhow::Result<()> {
         }
     };
     let replays = if args.validate {
-        Some(validate(&clips)?)
+        Some(validate(&clips, args.learning_passes)?)
     } else {
         None
     };
@@ -190,15 +196,35 @@ fn check(dir: &Path) -> anyhow::Result<Vec<MotionClip>> {
     Ok(dataset.clips().to_vec())
 }
 
-fn validate(clips: &[MotionClip]) -> anyhow::Result<Vec<ReplayReport>> {
+fn validate(clips: &[MotionClip], learning_passes: usize) -> anyhow::Result<Vec<ReplayReport>> {
     let model = UrdfModel::load(&default_urdf_path())?;
     let ground = Terrain::generate(&TerrainConfig::default()).collider();
-    let cfg = ReplayConfig::default();
+    let cfg = ReplayConfig {
+        learning_passes,
+        ..ReplayConfig::default()
+    };
     let mut reports = Vec::new();
     for clip in clips {
         let mut robot = RobotWorld::new(&model, ground.clone(), 1)?;
         let report = replay_clip(&mut robot, clip, &cfg);
         println!("[replay] {}", report.summary());
+        if learning_passes > 0 {
+            let per_pass: Vec<String> = report
+                .joint_rms_per_pass_rad
+                .iter()
+                .map(|r| format!("{r:.3}"))
+                .collect();
+            let feet_down: Vec<String> = report
+                .feet_down_fraction
+                .iter()
+                .map(|f| format!("{f:.2}"))
+                .collect();
+            println!(
+                "[replay]   joint rms per pass, rad: {}; feet down 0..6: {}",
+                per_pass.join(" "),
+                feet_down.join(" ")
+            );
+        }
         reports.push(report);
     }
     let passed = reports.iter().filter(|r| r.passed).count();

@@ -7,10 +7,21 @@
 //! rate. Velocities are averaged in the base frame after `warmup_cycles`. The AMP states of
 //! the replay are computed by `hexapod_core::amp::amp_state`, the function that makes the
 //! clip's states, and compared frame by frame.
+//!
+//! Played as is, the clip's joint trajectories are followed with the drives' lag and sag
+//! (the loaded stance legs bend: the base walks about 2.5 cm low, feet land early). With
+//! `learning_passes` the replay learns a correction of the targets first, by iterative
+//! learning control on the periodic motion (Arimoto et al., 1984; Bristow et al., "A survey
+//! of iterative learning control", IEEE CSM 2006): after each pass, every frame's targets
+//! move by `learning_gain` times the joint error the pass measured at that phase (mean over
+//! the recorded cycles), within the joint limits. The recorded pass is the last one, so the
+//! states are still the simulated robot's own, with joints closer to the clip's.
 
 use super::clip::MotionClip;
 use hexapod_core::amp::{amp_state, AMP_JOINT_POS, AMP_STATE_DIM};
-use hexapod_core::robot::{NUM_JOINTS, NUM_LEGS, TRIPOD_A_MASK, TRIPOD_B_MASK};
+use hexapod_core::robot::{
+    NUM_JOINTS, NUM_LEGS, Q_MAX_RAD, Q_MIN_RAD, TRIPOD_A_MASK, TRIPOD_B_MASK,
+};
 use hexapod_core::timing::DECIMATION;
 use host_sim::frames::{rotate, rotate_inverse};
 use host_sim::reference::ReferenceState;
@@ -75,6 +86,11 @@ pub struct ReplayConfig {
     pub max_tilt_rad: f32,
     /// Lowest base height, m.
     pub min_height_m: f32,
+    /// Passes of iterative learning control before the recorded one (0: the clip's joint
+    /// trajectories played as they are).
+    pub learning_passes: usize,
+    /// Share of a pass's joint error added to the targets for the next pass.
+    pub learning_gain: f32,
 }
 
 impl Default for ReplayConfig {
@@ -88,6 +104,8 @@ impl Default for ReplayConfig {
             zero_yaw_tolerance_rad_s: 0.1,
             max_tilt_rad: 0.35,
             min_height_m: 0.15,
+            learning_passes: 0,
+            learning_gain: 0.5,
         }
     }
 }
@@ -126,6 +144,9 @@ pub struct ReplayReport {
     pub tripod_score: f32,
     /// The same score by the clip's own contact flags: the most the replay can reach.
     pub clip_tripod_score: f32,
+    /// RMS joint error of each pass of iterative learning control, then of the recorded
+    /// pass (its last entry is `joint_rms_rad`), rad.
+    pub joint_rms_per_pass_rad: Vec<f32>,
     /// True when upright and within the velocity tolerances.
     pub passed: bool,
     /// The simulator's states at every policy step after the warm-up: the clip as the
@@ -201,12 +222,40 @@ fn is_tripod(stance_mask: u8) -> bool {
     stance_mask == TRIPOD_A_MASK || stance_mask == TRIPOD_B_MASK
 }
 
-/// Replays `clip` on `plant` and checks it.
+/// Replays `clip` on `plant` and checks it, after `cfg.learning_passes` passes of
+/// iterative learning control on the targets.
 pub fn replay_clip<P: ReplayPlant>(
     plant: &mut P,
     clip: &MotionClip,
     cfg: &ReplayConfig,
 ) -> ReplayReport {
+    let mut targets: Vec<[f32; NUM_JOINTS]> = clip.frames.iter().map(|f| f.joint_pos_rad).collect();
+    let mut rms_per_pass = Vec::with_capacity(cfg.learning_passes + 1);
+    for _ in 0..cfg.learning_passes {
+        let (report, mean_q) = replay_pass(plant, clip, cfg, &targets);
+        rms_per_pass.push(report.joint_rms_rad);
+        for (p, target) in targets.iter_mut().enumerate() {
+            let clip_q = &clip.frames[p].joint_pos_rad;
+            for j in 0..NUM_JOINTS {
+                let corrected = target[j] + cfg.learning_gain * (clip_q[j] - mean_q[p][j]);
+                target[j] = corrected.clamp(Q_MIN_RAD[j], Q_MAX_RAD[j]);
+            }
+        }
+    }
+    let (mut report, _) = replay_pass(plant, clip, cfg, &targets);
+    rms_per_pass.push(report.joint_rms_rad);
+    report.joint_rms_per_pass_rad = rms_per_pass;
+    report
+}
+
+/// One replay of `clip` with these per-frame joint targets; also returns the mean joint
+/// positions the robot reached at each frame's phase over the recorded cycles.
+fn replay_pass<P: ReplayPlant>(
+    plant: &mut P,
+    clip: &MotionClip,
+    cfg: &ReplayConfig,
+    frame_targets: &[[f32; NUM_JOINTS]],
+) -> (ReplayReport, Vec<[f32; NUM_JOINTS]>) {
     let n = clip.frames.len();
     let first = &clip.frames[0];
     plant.reset(
@@ -217,8 +266,10 @@ pub fn replay_clip<P: ReplayPlant>(
     let physics_dt_s = clip.frame_duration_s / DECIMATION as f32;
     let settle_steps = (cfg.settle_s / physics_dt_s).round() as usize;
     for _ in 0..settle_steps {
-        plant.step(&first.joint_pos_rad);
+        plant.step(&frame_targets[0]);
     }
+    let mut sum_q = vec![[0.0f32; NUM_JOINTS]; n];
+    let mut phase_count = vec![0usize; n];
     let clip_states = clip.amp_states();
     let (mut sum_v, mut count) = ([0.0f32; 3], 0usize);
     let (mut max_tilt, mut min_height, mut sum_height) = (0.0f32, f32::MAX, 0.0f32);
@@ -227,10 +278,7 @@ pub fn replay_clip<P: ReplayPlant>(
     let mut tripod = 0usize;
     let mut states = Vec::with_capacity((cfg.cycles - cfg.warmup_cycles.min(cfg.cycles)) * n);
     for k in 0..cfg.cycles * n {
-        let (a, b) = (
-            &clip.frames[k % n].joint_pos_rad,
-            &clip.frames[(k + 1) % n].joint_pos_rad,
-        );
+        let (a, b) = (&frame_targets[k % n], &frame_targets[(k + 1) % n]);
         for sub in 0..DECIMATION {
             let u = (sub + 1) as f32 / DECIMATION as f32;
             let target: [f32; NUM_JOINTS] = std::array::from_fn(|j| a[j] + u * (b[j] - a[j]));
@@ -252,7 +300,12 @@ pub fn replay_clip<P: ReplayPlant>(
             feet_down[plant.stance_mask().count_ones() as usize] += 1;
             tripod += usize::from(is_tripod(plant.stance_mask()));
             states.push(sim_reference_state(&s));
-            let reference = &clip_states[(k + 1) % n];
+            let phase = (k + 1) % n;
+            for j in 0..NUM_JOINTS {
+                sum_q[phase][j] += s.q_rad[j];
+            }
+            phase_count[phase] += 1;
+            let reference = &clip_states[phase];
             for j in AMP_JOINT_POS {
                 joint_sq += (amp[j] - reference[j]).powi(2);
                 joint_count += 1;
@@ -274,7 +327,16 @@ pub fn replay_clip<P: ReplayPlant>(
         cfg.zero_yaw_tolerance_rad_s,
     );
     let clip_height = clip.frames.iter().map(|f| f.base_height_m()).sum::<f32>() / n as f32;
-    ReplayReport {
+    let mean_q = sum_q
+        .iter()
+        .zip(&phase_count)
+        .zip(&clip.frames)
+        .map(|((q, &c), frame)| match c {
+            0 => frame.joint_pos_rad,
+            c => q.map(|x| x / c as f32),
+        })
+        .collect();
+    let report = ReplayReport {
         name: clip.name.clone(),
         command: cmd,
         mean_velocity: mean,
@@ -300,10 +362,12 @@ pub fn replay_clip<P: ReplayPlant>(
             })
             .count() as f32
             / n as f32,
+        joint_rms_per_pass_rad: Vec::new(),
         passed: lin_error <= lin_tol
             && yaw_error <= yaw_tol
             && max_tilt <= cfg.max_tilt_rad
             && min_height >= cfg.min_height_m,
         states,
-    }
+    };
+    (report, mean_q)
 }

@@ -379,6 +379,37 @@ fn every_committed_clip_walks_at_its_command_in_the_simulator() {
     assert!(!r.passed, "{}", r.summary());
 }
 
+#[test]
+fn learned_targets_bring_the_replayed_joints_closer_to_the_clip() {
+    let data = MotionDataset::load_dir(&committed_dir()).unwrap();
+    let clip = data
+        .clips()
+        .iter()
+        .find(|c| c.name == "forward_0.3")
+        .unwrap();
+    let plain = replay_clip(&mut robot(), clip, &ReplayConfig::default());
+    let cfg = ReplayConfig {
+        learning_passes: 2,
+        ..ReplayConfig::default()
+    };
+    let learned = replay_clip(&mut robot(), clip, &cfg);
+    let per_pass = &learned.joint_rms_per_pass_rad;
+    assert_eq!(per_pass.len(), 3);
+    // The first pass is the plain replay; each correction lowers the joint error.
+    assert!((per_pass[0] - plain.joint_rms_rad).abs() < 1e-6, "{per_pass:?}");
+    assert!(per_pass[1] < 0.8 * per_pass[0], "{per_pass:?}");
+    assert!(per_pass[2] < per_pass[1], "{per_pass:?}");
+    assert_eq!(learned.joint_rms_rad, per_pass[2]);
+    // The base walks closer to the clip's height than when the drives sag.
+    assert!(
+        (learned.mean_height_m - learned.clip_height_m).abs()
+            < (plain.mean_height_m - plain.clip_height_m).abs(),
+        "{} / {}",
+        plain.summary(),
+        learned.summary()
+    );
+}
+
 fn committed_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/priors")
 }

@@ -396,7 +396,10 @@ fn learned_targets_bring_the_replayed_joints_closer_to_the_clip() {
     let per_pass = &learned.joint_rms_per_pass_rad;
     assert_eq!(per_pass.len(), 3);
     // The first pass is the plain replay; each correction lowers the joint error.
-    assert!((per_pass[0] - plain.joint_rms_rad).abs() < 1e-6, "{per_pass:?}");
+    assert!(
+        (per_pass[0] - plain.joint_rms_rad).abs() < 1e-6,
+        "{per_pass:?}"
+    );
     assert!(per_pass[1] < 0.8 * per_pass[0], "{per_pass:?}");
     assert!(per_pass[2] < per_pass[1], "{per_pass:?}");
     assert_eq!(learned.joint_rms_rad, per_pass[2]);

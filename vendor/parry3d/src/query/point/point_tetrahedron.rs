@@ -1,6 +1,8 @@
 use crate::math::{Real, Vector};
 use crate::query::{PointProjection, PointQuery, PointQueryWithLocation};
-use crate::shape::{FeatureId, Tetrahedron, TetrahedronPointLocation};
+use crate::shape::{
+    FeatureId, Segment, SegmentPointLocation, Tetrahedron, TetrahedronPointLocation,
+};
 
 impl PointQuery for Tetrahedron {
     #[inline]
@@ -273,7 +275,12 @@ impl PointQueryWithLocation for Tetrahedron {
                     let vb = normal.dot(cp.cross(ap));
 
                     let denom = va + vb + vc;
-                    assert!(denom != 0.0);
+                    if denom == 0.0 {
+                        // A sliver face far from the point: va, vb and vc cancel and
+                        // their sum rounds to zero although the normal did not. As for
+                        // the degenerate triangle, project on the face's longest edge.
+                        return Some(project_on_longest_edge(i, a, b, c, ap));
+                    }
                     let inv_denom = 1.0 / denom;
 
                     let bcoords = [va * inv_denom, vb * inv_denom, vc * inv_denom];
@@ -284,6 +291,43 @@ impl PointQueryWithLocation for Tetrahedron {
                 }
             }
             None
+        }
+
+        /// The point `a + ap` projected on the longest edge of face `i` (vertices `a`, `b`,
+        /// `c` in the tetrahedron's order), located on the tetrahedron.
+        fn project_on_longest_edge(
+            i: usize,
+            a: Vector,
+            b: Vector,
+            c: Vector,
+            ap: Vector,
+        ) -> (PointProjection, TetrahedronPointLocation) {
+            // Each face's vertices and edges (ab, ac, bc of the face) as the tetrahedron
+            // numbers them.
+            const FACE_VERTICES: [[u32; 3]; 4] = [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]];
+            const FACE_EDGES: [[u32; 3]; 4] = [[0, 1, 3], [0, 2, 4], [1, 2, 5], [3, 4, 5]];
+            let (sq_ab, sq_ac, sq_bc) = (
+                (b - a).length_squared(),
+                (c - a).length_squared(),
+                (c - b).length_squared(),
+            );
+            let (segment, edge, ends) = if sq_ab >= sq_ac && sq_ab >= sq_bc {
+                (Segment::new(a, b), 0, [0, 1])
+            } else if sq_ac >= sq_bc {
+                (Segment::new(a, c), 1, [0, 2])
+            } else {
+                (Segment::new(b, c), 2, [1, 2])
+            };
+            let (proj, location) = segment.project_local_point_and_get_location(a + ap, true);
+            let location = match location {
+                SegmentPointLocation::OnVertex(v) => {
+                    TetrahedronPointLocation::OnVertex(FACE_VERTICES[i][ends[v as usize]])
+                }
+                SegmentPointLocation::OnEdge(bcoords) => {
+                    TetrahedronPointLocation::OnEdge(FACE_EDGES[i][edge], bcoords)
+                }
+            };
+            (PointProjection::new(false, proj.point), location)
         }
 
         // Face abc.

@@ -22,6 +22,15 @@ pub enum TrainError {
     /// The learner could not be built or updated (a non-finite loss among others).
     #[error(transparent)]
     Learner(#[from] crate::algo::ppo::PpoError),
+    /// The environment panicked while stepping the robots (a bug in the simulator or in
+    /// one of its libraries). The learner is still that of the last finished iteration.
+    #[error("the environment panicked in iteration {iteration}'s rollout: {message}")]
+    EnvPanic {
+        /// The iteration whose rollout was cut short.
+        iteration: usize,
+        /// The panic's message.
+        message: String,
+    },
     /// File output failed.
     #[error("i/o error on {path}: {source}")]
     Io {

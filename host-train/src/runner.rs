@@ -270,7 +270,7 @@ impl Runner {
     /// One iteration: rollout and update. Returns the metrics row.
     pub fn iterate(&mut self) -> Result<BTreeMap<String, f64>, TrainError> {
         let t0 = Instant::now();
-        let ro = self.collect()?;
+        let ro = self.collect_guarded()?;
         let t1 = Instant::now();
         let priors = self
             .priors
@@ -294,6 +294,26 @@ impl Runner {
         self.metrics.push(row.clone());
         self.iteration += 1;
         Ok(row)
+    }
+
+    /// [`Self::collect`], with a panic inside the environment turned into
+    /// [`TrainError::EnvPanic`]. A rollout changes the learner only in the discriminator's
+    /// replay buffer, which checkpoints do not hold: the weights, optimizer and normalizers
+    /// are still those of the last finished iteration, so `learn` can save them.
+    fn collect_guarded(&mut self) -> Result<RolloutStats, TrainError> {
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| self.collect())).unwrap_or_else(
+            |payload| {
+                let message = payload
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| payload.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "(no message)".into());
+                Err(TrainError::EnvPanic {
+                    iteration: self.iteration,
+                    message,
+                })
+            },
+        )
     }
 
     /// Writes a checkpoint `checkpoints/model_<iteration>` and returns its directory.
@@ -371,6 +391,10 @@ impl Runner {
                 Ok(r) => r,
                 Err(e) => {
                     bar.abandon();
+                    if matches!(e, TrainError::EnvPanic { .. }) {
+                        // Nothing of the learner is lost: save it as it stands.
+                        let _ = self.save();
+                    }
                     let _ = self.write_metrics(true);
                     return Err(wrap(e, &self.last_checkpoint));
                 }

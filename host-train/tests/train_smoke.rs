@@ -139,3 +139,63 @@ fn nan_loss_stops_the_run_and_keeps_the_last_good_checkpoint() {
     assert!(w.iter().all(|x| x.is_finite()));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Panics in `step` from the `after`-th step on, as a simulator bug would.
+struct PanickingEnv {
+    inner: PointMassEnv,
+    steps: usize,
+    after: usize,
+}
+
+impl VecEnv for PanickingEnv {
+    fn num_envs(&self) -> usize {
+        self.inner.num_envs()
+    }
+    fn reset(&mut self) -> Observations {
+        self.inner.reset()
+    }
+    fn set_command(&mut self, i: usize, command: [f32; 3]) {
+        self.inner.set_command(i, command);
+    }
+    fn step(&mut self, actions: &[f32]) -> StepResult {
+        self.steps += 1;
+        assert!(
+            self.steps <= self.after,
+            "degenerate contact in the test env"
+        );
+        self.inner.step(actions)
+    }
+}
+
+#[test]
+fn a_panic_in_the_environment_saves_the_learner_and_says_so() {
+    let mut cfg = smoke_config();
+    cfg.env.num_envs = 8;
+    cfg.runner.max_iterations = 10;
+    cfg.runner.save_interval = 2;
+    let steps = cfg.ppo.num_steps_per_env;
+    let env = PanickingEnv {
+        inner: PointMassEnv::new(8, 100, true, true, 1),
+        steps: 0,
+        after: 3 * steps + 5,
+    };
+    let dir = run_dir("panic");
+    let mut runner = Runner::new(&cfg, Box::new(env), priors(), &dir).unwrap();
+    let err = runner.learn(false).unwrap_err();
+    assert!(
+        matches!(&err.source, TrainError::EnvPanic { iteration: 3, message } if message.contains("degenerate contact")),
+        "{err}"
+    );
+    // Iterations 0-2 finished: their learner is saved as model_000003, past the periodic
+    // model_000002, with all three metrics rows.
+    let saved = dir.join("checkpoints/model_000003");
+    assert_eq!(err.last_checkpoint.as_deref(), Some(saved.as_path()));
+    assert!(err.to_string().contains("model_000003"), "{err}");
+    let csv = std::fs::read_to_string(dir.join("metrics.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 3);
+    // It resumes where the rollout broke off.
+    let mut resumed = Runner::new(&cfg, env_for(&cfg), priors(), &dir).unwrap();
+    resumed.resume(&saved).unwrap();
+    assert_eq!(resumed.iteration, 3);
+    std::fs::remove_dir_all(&dir).ok();
+}

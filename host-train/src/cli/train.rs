@@ -135,7 +135,14 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     })
     .context("installing the Ctrl-C handler")?;
     runner.set_stop_flag(stop);
-    let last = runner.learn(!args.no_progress)?;
+    let last = runner.learn(!args.no_progress).map_err(|e| {
+        let resume = e
+            .last_checkpoint
+            .as_ref()
+            .map(|p| format!(" (resume with --resume {})", p.display()))
+            .unwrap_or_default();
+        anyhow::anyhow!("{e}{resume}")
+    })?;
     if runner.stopped_early() {
         eprintln!(
             "interrupted at iteration {}: checkpoint {} (resume with --resume {}), metrics {}",

@@ -76,11 +76,20 @@ fn ppo_with_amp_learns_and_resumes() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// Returns NaN rewards from the `after`-th step on.
+/// How [`PoisonedEnv`] breaks from its `after`-th step on.
+enum Fault {
+    /// NaN rewards.
+    NanRewards,
+    /// A panic in `step`, as a simulator bug would.
+    Panic,
+}
+
+/// Breaks from the `after`-th step on, in the way `fault` says.
 struct PoisonedEnv {
     inner: PointMassEnv,
     steps: usize,
     after: usize,
+    fault: Fault,
 }
 
 impl VecEnv for PoisonedEnv {
@@ -94,9 +103,14 @@ impl VecEnv for PoisonedEnv {
         self.inner.set_command(i, command);
     }
     fn step(&mut self, actions: &[f32]) -> StepResult {
-        let mut r = self.inner.step(actions);
         self.steps += 1;
-        if self.steps > self.after {
+        let broken = self.steps > self.after;
+        assert!(
+            !(broken && matches!(self.fault, Fault::Panic)),
+            "degenerate contact in the test env"
+        );
+        let mut r = self.inner.step(actions);
+        if broken {
             r.rewards.iter_mut().for_each(|x| *x = f32::NAN);
         }
         r
@@ -114,6 +128,7 @@ fn nan_loss_stops_the_run_and_keeps_the_last_good_checkpoint() {
         inner: PointMassEnv::new(8, 100, true, true, 1),
         steps: 0,
         after: 3 * steps + 5,
+        fault: Fault::NanRewards,
     };
     let dir = run_dir("nan");
     let mut runner = Runner::new(&cfg, Box::new(env), priors(), &dir).unwrap();
@@ -140,33 +155,6 @@ fn nan_loss_stops_the_run_and_keeps_the_last_good_checkpoint() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// Panics in `step` from the `after`-th step on, as a simulator bug would.
-struct PanickingEnv {
-    inner: PointMassEnv,
-    steps: usize,
-    after: usize,
-}
-
-impl VecEnv for PanickingEnv {
-    fn num_envs(&self) -> usize {
-        self.inner.num_envs()
-    }
-    fn reset(&mut self) -> Observations {
-        self.inner.reset()
-    }
-    fn set_command(&mut self, i: usize, command: [f32; 3]) {
-        self.inner.set_command(i, command);
-    }
-    fn step(&mut self, actions: &[f32]) -> StepResult {
-        self.steps += 1;
-        assert!(
-            self.steps <= self.after,
-            "degenerate contact in the test env"
-        );
-        self.inner.step(actions)
-    }
-}
-
 #[test]
 fn a_panic_in_the_environment_saves_the_learner_and_says_so() {
     let mut cfg = smoke_config();
@@ -174,10 +162,11 @@ fn a_panic_in_the_environment_saves_the_learner_and_says_so() {
     cfg.runner.max_iterations = 10;
     cfg.runner.save_interval = 2;
     let steps = cfg.ppo.num_steps_per_env;
-    let env = PanickingEnv {
+    let env = PoisonedEnv {
         inner: PointMassEnv::new(8, 100, true, true, 1),
         steps: 0,
         after: 3 * steps + 5,
+        fault: Fault::Panic,
     };
     let dir = run_dir("panic");
     let mut runner = Runner::new(&cfg, Box::new(env), priors(), &dir).unwrap();

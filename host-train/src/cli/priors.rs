@@ -42,6 +42,17 @@ pub struct PriorsArgs {
     /// one tripod touches down as the other lifts off.
     #[arg(long, default_value_t = GeneratorConfig::default().swing_frames)]
     pub swing_frames: usize,
+    /// Vertical speed of a swing foot at lift-off and touch-down, m/s (0: min-jerk height,
+    /// the foot settles onto the ground). With some speed the three feet of a tripod land
+    /// and lift off in the same policy step under the drives (assets/priors/README.md).
+    #[arg(long, default_value_t = GeneratorConfig::default().swing_contact_speed_m_s)]
+    pub swing_contact_speed_m_s: f64,
+    /// How long before the scheduled lift-off a foot's path leaves the ground and after the
+    /// scheduled touch-down it meets it, s (the contact flags keep the schedule): a loaded
+    /// leg stays on the ground until it has unloaded, and a swinging foot meets the sagging
+    /// body's ground early (assets/priors/README.md).
+    #[arg(long, default_value_t = GeneratorConfig::default().swing_lead_s)]
+    pub swing_lead_s: f64,
     /// With --validate: passes of iterative learning control on the replay's joint targets
     /// before the recorded replay (0: the clip's trajectories as they are, as the trainer's
     /// tracked prior states are made). A diagnostic: how the clips play when the drives'
@@ -62,9 +73,20 @@ pub fn run(args: PriorsArgs) -> anyhow::Result<()> {
                     args.swing_clearance_m
                 );
             }
+            if !(0.0..=1.0).contains(&args.swing_contact_speed_m_s) {
+                bail!(
+                    "--swing-contact-speed-m-s {} is outside 0..=1 m/s",
+                    args.swing_contact_speed_m_s
+                );
+            }
+            if !(0.0..=0.1).contains(&args.swing_lead_s) {
+                bail!("--swing-lead-s {} is outside 0..=0.1 s", args.swing_lead_s);
+            }
             let cfg = GeneratorConfig {
                 swing_clearance_m: args.swing_clearance_m,
                 swing_frames: args.swing_frames,
+                swing_contact_speed_m_s: args.swing_contact_speed_m_s,
+                swing_lead_s: args.swing_lead_s,
                 ..GeneratorConfig::default()
             };
             // Refused before anything is written.
@@ -112,11 +134,13 @@ fn generate(
         .with_context(|| format!("creating {}", plot_dir.display()))?;
     let commands = default_commands();
     println!(
-        "[priors] {} commands, cycle {} frames x 0.02 s, swing {} frames, clearance {} m",
+        "[priors] {} commands, cycle {} frames x 0.02 s, swing {} frames, clearance {} m, contact speed {} m/s, lead {} s",
         commands.len(),
         cfg.frames_per_cycle,
         cfg.swing_frames,
-        cfg.swing_clearance_m
+        cfg.swing_clearance_m,
+        cfg.swing_contact_speed_m_s,
+        cfg.swing_lead_s
     );
     let mut clips = Vec::new();
     let mut reports = Vec::new();
@@ -232,6 +256,23 @@ fn validate(clips: &[MotionClip], learning_passes: usize) -> anyhow::Result<Vec<
         "[replay] {passed}/{} clips upright and within 25 % of the command",
         reports.len()
     );
+    let n = reports.len().max(1) as f32;
+    let mean_feet_down: Vec<String> = (0..7)
+        .map(|k| {
+            let f = reports.iter().map(|r| r.feet_down_fraction[k]).sum::<f32>() / n;
+            format!("{f:.2}")
+        })
+        .collect();
+    let (min, max) = reports
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), r| {
+            (lo.min(r.tripod_score), hi.max(r.tripod_score))
+        });
+    println!(
+        "[replay] tripod score mean {:.2} ({min:.2}-{max:.2}); feet down 0..6, mean share: {}",
+        reports.iter().map(|r| r.tripod_score).sum::<f32>() / n,
+        mean_feet_down.join(" ")
+    );
     Ok(reports)
 }
 
@@ -243,6 +284,15 @@ fn regenerate_command(args: &PriorsArgs) -> String {
     }
     if args.swing_frames != GeneratorConfig::default().swing_frames {
         command += &format!(" --swing-frames {}", args.swing_frames);
+    }
+    if args.swing_contact_speed_m_s != GeneratorConfig::default().swing_contact_speed_m_s {
+        command += &format!(
+            " --swing-contact-speed-m-s {}",
+            args.swing_contact_speed_m_s
+        );
+    }
+    if args.swing_lead_s != GeneratorConfig::default().swing_lead_s {
+        command += &format!(" --swing-lead-s {}", args.swing_lead_s);
     }
     command + " --validate"
 }

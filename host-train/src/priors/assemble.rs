@@ -45,7 +45,8 @@ pub struct KinematicReport {
     /// Smallest distance of any foot to the edge of its leg's reach (thigh + shank fully
     /// stretched), m.
     pub min_reach_margin_m: f64,
-    /// Largest speed of a stance foot in the world (slip), from consecutive frames, m/s.
+    /// Largest speed of a stance foot in the world (slip), from consecutive frames whose foot
+    /// paths are on the ground (a swing lead lifts the path in the last stance frames), m/s.
     pub max_stance_foot_speed_m_s: f64,
     /// Smallest swing-foot clearance at mid-swing above the stance height, m.
     pub min_swing_apex_m: f64,
@@ -159,12 +160,23 @@ fn feet_world(
 fn stance_foot_speed(plan: &FootPlan, sol: &GaitSolution, q_all: &[[f32; NUM_JOINTS]]) -> f64 {
     let n = q_all.len();
     let dt = plan.schedule().frame_dt_s();
+    let ground_z = sol
+        .feet_m
+        .iter()
+        .flatten()
+        .map(|f| f[2])
+        .fold(f64::INFINITY, f64::min);
     let mut worst = 0.0f64;
     for k in 0..n {
         let a = feet_world(plan, sol, q_all, k as i64);
         let b = feet_world(plan, sol, q_all, k as i64 + 1);
         for leg in 0..NUM_LEGS {
-            if sol.contacts[k][leg] && sol.contacts[(k + 1) % n][leg] {
+            let on_ground = |frame: usize| sol.feet_m[frame][leg][2] <= ground_z + 1e-9;
+            if sol.contacts[k][leg]
+                && sol.contacts[(k + 1) % n][leg]
+                && on_ground(k)
+                && on_ground((k + 1) % n)
+            {
                 worst = worst.max(norm(sub(b[leg], a[leg])) / dt);
             }
         }

@@ -53,6 +53,14 @@ pub struct ClipMetadata {
     pub duty_factor: f64,
     /// Swing apex above the ground, m.
     pub swing_clearance_m: f64,
+    /// Vertical speed of a swing foot at lift-off and touch-down, m/s (0 when absent: the
+    /// clips made before it existed).
+    #[serde(default)]
+    pub swing_contact_speed_m_s: f64,
+    /// How far the feet's paths lead the scheduled lift-off and trail the touch-down, s (0
+    /// when absent).
+    #[serde(default)]
+    pub swing_lead_s: f64,
     /// Clarabel's final status.
     pub solver_status: String,
     /// QP objective.

@@ -7,7 +7,13 @@
 //! the nominal position carried by the command's motion. Stance feet are fixed in the world.
 //! A swing moves the foot in a straight world-frame line from lift-off to the next foothold
 //! with min-jerk timing, while its height follows `h * 64 s^3 (1 - s)^3` (apex `h` at mid-swing,
-//! zero vertical velocity and acceleration at lift-off and touch-down).
+//! zero vertical velocity and acceleration at lift-off and touch-down), plus, when a contact
+//! speed `v` is set, `v T_swing s (1 - s) (1 - 2 s)^2`: the foot leaves and meets the ground at
+//! `v` while the apex stays `h` at mid-swing. A foot that meets the ground with some speed
+//! touches down when planned even if the body sits a few millimetres off its plan; at zero
+//! speed the last millimetres take several frames and the three feet of a tripod land apart.
+//! A swing lead widens the foot's path beyond the scheduled swing on both sides
+//! ([`FootPlan::with_swing_lead_s`]).
 //!
 //! Positions are foot sphere centres in the command frame C(t) of [`GaitCommand`].
 
@@ -23,6 +29,8 @@ pub struct FootPlan {
     command: GaitCommand,
     schedule: TripodSchedule,
     clearance_m: f64,
+    contact_speed_m_s: f64,
+    swing_lead_s: f64,
     nominal_m: [V3; 6],
 }
 
@@ -33,21 +41,37 @@ impl FootPlan {
             command,
             schedule,
             clearance_m,
+            contact_speed_m_s: 0.0,
+            swing_lead_s: 0.0,
             nominal_m: nominal_feet_m(),
         }
     }
 
+    /// The same plan with swing feet leaving and meeting the ground at `speed_m_s` vertically.
+    pub fn with_contact_speed_m_s(mut self, speed_m_s: f64) -> Self {
+        self.contact_speed_m_s = speed_m_s;
+        self
+    }
+
     /// Foot sphere centre of `leg` at time `t_s`, in C(t) coordinates, and whether it is in
-    /// stance.
+    /// stance (by the schedule).
     pub fn foot_m(&self, leg: Leg, t_s: f64) -> (V3, bool) {
         let s = &self.schedule;
-        let (t_sw, t_st) = (s.swing_s(), s.stance_s());
-        let since_lift_off = s.time_since_lift_off_s(leg, t_s);
+        let period = s.period_s();
+        let in_stance = s.time_since_lift_off_s(leg, t_s) >= s.swing_s();
+        // The foot's path swings over the scheduled swing widened by the lead on both sides;
+        // the middle of its stance stays the scheduled one.
+        let (t_sw, t_st) = (
+            s.swing_s() + 2.0 * self.swing_lead_s,
+            s.stance_s() - 2.0 * self.swing_lead_s,
+        );
+        let since_lift_off =
+            (s.time_since_lift_off_s(leg, t_s) + self.swing_lead_s).rem_euclid(period);
         let nominal = self.nominal_m[leg.index()];
         if since_lift_off >= t_sw {
             // Stance: tau from the middle of this stance.
             let tau = since_lift_off - t_sw - 0.5 * t_st;
-            return (self.command.to_later_frame(nominal, tau), true);
+            return (self.command.to_later_frame(nominal, tau), in_stance);
         }
         // Swing, interpolated in the (inertial) frame C(t_lift_off).
         let lift_off = self.command.to_later_frame(nominal, 0.5 * t_st);
@@ -59,8 +83,21 @@ impl FootPlan {
         let u = since_lift_off / t_sw;
         let blend = 10.0 * u.powi(3) - 15.0 * u.powi(4) + 6.0 * u.powi(5);
         let mut p = add(lift_off, scale(blend, sub(touch_down, lift_off)));
-        p[2] = nominal[2] + self.clearance_m * 64.0 * u.powi(3) * (1.0 - u).powi(3);
-        (self.command.to_later_frame(p, since_lift_off), false)
+        p[2] = nominal[2]
+            + self.clearance_m * 64.0 * u.powi(3) * (1.0 - u).powi(3)
+            + self.contact_speed_m_s * t_sw * u * (1.0 - u) * (1.0 - 2.0 * u).powi(2);
+        (self.command.to_later_frame(p, since_lift_off), in_stance)
+    }
+
+    /// The same plan with each foot's path leaving the ground `lead_s` before the scheduled
+    /// lift-off and meeting it `lead_s` after the scheduled touch-down (contact flags and
+    /// forces keep the schedule). Under the drives a loaded foot stays on the ground until
+    /// its leg has unloaded, and the body sits lower than planned so a swinging foot meets
+    /// the ground early; the lead lets both happen at the scheduled instants. At most just
+    /// under half a stance.
+    pub fn with_swing_lead_s(mut self, lead_s: f64) -> Self {
+        self.swing_lead_s = lead_s.clamp(0.0, 0.49 * self.schedule.stance_s());
+        self
     }
 
     /// The schedule.
@@ -127,6 +164,64 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+
+    #[test]
+    fn swing_meets_the_ground_at_the_contact_speed_and_keeps_its_apex() {
+        let speed_m_s = 0.3;
+        let p = plan(0.2, 0.0, 0.0).with_contact_speed_m_s(speed_m_s);
+        let s = *p.schedule();
+        let h = 1e-6;
+        for leg in Leg::ALL {
+            let (lift_off, touch_down) = (s.lift_off_s(leg), s.lift_off_s(leg) + s.swing_s());
+            let up = (p.foot_m(leg, lift_off + h).0[2] - p.foot_m(leg, lift_off).0[2]) / h;
+            let down = (p.foot_m(leg, touch_down).0[2] - p.foot_m(leg, touch_down - h).0[2]) / h;
+            assert!((up - speed_m_s).abs() < 1e-3, "{leg:?} lift-off {up}");
+            assert!((down + speed_m_s).abs() < 1e-3, "{leg:?} touch-down {down}");
+            let (apex, _) = p.foot_m(leg, lift_off + 0.5 * s.swing_s());
+            assert!((apex[2] - FOOT_RADIUS_M as f64 - 0.08).abs() < 1e-9);
+            // Never below the ground in swing.
+            for i in 1..100 {
+                let (x, stance) = p.foot_m(leg, lift_off + s.swing_s() * i as f64 / 100.0);
+                assert!(!stance && x[2] > FOOT_RADIUS_M as f64, "{leg:?} {i}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_swing_lead_widens_the_path_and_keeps_the_schedule() {
+        let lead_s = 0.04;
+        let p = plan(0.3, 0.1, 0.4)
+            .with_contact_speed_m_s(0.2)
+            .with_swing_lead_s(lead_s);
+        let plain = plan(0.3, 0.1, 0.4);
+        let s = *p.schedule();
+        let ground = FOOT_RADIUS_M as f64;
+        let period = s.period_s();
+        for leg in Leg::ALL {
+            let (lift_off, touch_down) = (s.lift_off_s(leg), s.lift_off_s(leg) + s.swing_s());
+            for (t, on_ground) in [
+                (lift_off - lead_s - 1e-3, true),
+                (lift_off - 0.5 * lead_s, false),
+                (touch_down + 0.5 * lead_s, false),
+                (touch_down + lead_s + 1e-3, true),
+            ] {
+                let (x, stance) = p.foot_m(leg, t);
+                // The contact flags are the schedule's, lead or not.
+                assert_eq!(stance, plain.foot_m(leg, t).1, "{leg:?} {t}");
+                assert_eq!((x[2] - ground).abs() < 1e-12, on_ground, "{leg:?} {t}");
+            }
+            // Continuous and periodic with the lead.
+            let mut prev = p.foot_m(leg, -1e-4).0;
+            for i in 0..=3000 {
+                let x = p.foot_m(leg, i as f64 * period / 3000.0).0;
+                assert!(norm(sub(x, prev)) < 1e-3, "{leg:?} {i}");
+                prev = x;
+            }
+            // The middle of the stance is where it was: under the nominal foot.
+            let mid = lift_off - 0.5 * s.stance_s();
+            assert!(norm(sub(p.foot_m(leg, mid).0, plain.foot_m(leg, mid).0)) < 1e-12);
         }
     }
 

@@ -16,6 +16,11 @@ pub struct GeneratorConfig {
     pub swing_frames: usize,
     /// Swing apex above the ground, m.
     pub swing_clearance_m: f64,
+    /// Vertical speed of a swing foot at lift-off and touch-down, m/s.
+    pub swing_contact_speed_m_s: f64,
+    /// How long before the scheduled lift-off a foot's path leaves the ground, and after the
+    /// scheduled touch-down it meets it, s.
+    pub swing_lead_s: f64,
     /// The QP's weights and limits.
     pub qp: GaitQpConfig,
 }
@@ -27,6 +32,8 @@ impl Default for GeneratorConfig {
             frames_per_cycle: 30,
             swing_frames: 13,
             swing_clearance_m: 0.08,
+            swing_contact_speed_m_s: 0.0,
+            swing_lead_s: 0.0,
             qp: GaitQpConfig::default(),
         }
     }
@@ -117,7 +124,9 @@ pub fn generate_clip(
     cfg: &GeneratorConfig,
 ) -> Result<(MotionClip, ClipReport, GaitSolution), GenerateError> {
     let schedule = TripodSchedule::new(cfg.frames_per_cycle, cfg.swing_frames)?;
-    let plan = FootPlan::new(command.clone(), schedule, cfg.swing_clearance_m);
+    let plan = FootPlan::new(command.clone(), schedule, cfg.swing_clearance_m)
+        .with_contact_speed_m_s(cfg.swing_contact_speed_m_s)
+        .with_swing_lead_s(cfg.swing_lead_s);
     let start = std::time::Instant::now();
     let sol = optimize_gait(&plan, &cfg.qp).map_err(|source| GenerateError::Optimize {
         clip: command.name.clone(),
@@ -147,6 +156,8 @@ pub fn generate_clip(
         period_s: schedule.period_s(),
         duty_factor: schedule.duty_factor(),
         swing_clearance_m: cfg.swing_clearance_m,
+        swing_contact_speed_m_s: cfg.swing_contact_speed_m_s,
+        swing_lead_s: cfg.swing_lead_s,
         solver_status: report.solver_status.clone(),
         objective: report.objective,
         max_qp_violation: report.max_qp_violation,

@@ -251,7 +251,7 @@ impl Default for PpoConfig {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum PriorKind {
-    /// `assets/priors/*.json`, the trajectory-optimized tripod clips.
+    /// `assets/priors-sync/*.json`, the trajectory-optimized tripod clips.
     Dataset,
     /// A synthetic tripod oscillation (tests and smoke runs only).
     Synthetic,
@@ -317,7 +317,7 @@ impl Default for AmpConfig {
             input_noise_std: 0.0,
             replay_buffer_size: 100_000,
             prior_kind: PriorKind::Dataset,
-            priors_dir: "assets/priors".into(),
+            priors_dir: "assets/priors-sync".into(),
             prior_states: crate::priors::dataset::PriorStates::Tracked,
             follow_policy_learning_rate: false,
             steps_per_iteration: 0,

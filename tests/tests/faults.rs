@@ -67,7 +67,11 @@ fn rc_failsafe_while_walking_sits_down_then_cuts_torque() {
     let sitting_down = |m: Mode| matches!(m, Mode::SafeSitDown { .. });
     assert!(sil.run_until(0.5, &mut policy, sitting_down));
     let t_sit = sil.time_s();
-    assert!(t_sit - t_fault >= 0.15, "sat down {} s after the loss", t_sit - t_fault);
+    assert!(
+        t_sit - t_fault >= 0.15,
+        "sat down {} s after the loss",
+        t_sit - t_fault
+    );
     assert!(
         matches!(
             sil.mode(),

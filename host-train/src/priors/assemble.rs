@@ -160,12 +160,7 @@ fn feet_world(
 fn stance_foot_speed(plan: &FootPlan, sol: &GaitSolution, q_all: &[[f32; NUM_JOINTS]]) -> f64 {
     let n = q_all.len();
     let dt = plan.schedule().frame_dt_s();
-    let ground_z = sol
-        .feet_m
-        .iter()
-        .flatten()
-        .map(|f| f[2])
-        .fold(f64::INFINITY, f64::min);
+    let ground_z = ground_z_m(sol);
     let mut worst = 0.0f64;
     for k in 0..n {
         let a = feet_world(plan, sol, q_all, k as i64);
@@ -184,13 +179,17 @@ fn stance_foot_speed(plan: &FootPlan, sol: &GaitSolution, q_all: &[[f32; NUM_JOI
     worst
 }
 
-fn swing_apex(sol: &GaitSolution) -> f64 {
-    let stance_z = sol
-        .feet_m
+/// Height of the foot centres on the ground: the lowest any foot path goes, m.
+fn ground_z_m(sol: &GaitSolution) -> f64 {
+    sol.feet_m
         .iter()
         .flatten()
         .map(|f| f[2])
-        .fold(f64::INFINITY, f64::min);
+        .fold(f64::INFINITY, f64::min)
+}
+
+fn swing_apex(sol: &GaitSolution) -> f64 {
+    let stance_z = ground_z_m(sol);
     let mut apex = [f64::NEG_INFINITY; NUM_LEGS];
     for feet in &sol.feet_m {
         for leg in 0..NUM_LEGS {

@@ -57,8 +57,8 @@ impl FootPlan {
     /// stance (by the schedule).
     pub fn foot_m(&self, leg: Leg, t_s: f64) -> (V3, bool) {
         let s = &self.schedule;
-        let period = s.period_s();
-        let in_stance = s.time_since_lift_off_s(leg, t_s) >= s.swing_s();
+        let since_scheduled_lift_off = s.time_since_lift_off_s(leg, t_s);
+        let in_stance = since_scheduled_lift_off >= s.swing_s();
         // The foot's path swings over the scheduled swing widened by the lead on both sides;
         // the middle of its stance stays the scheduled one.
         let (t_sw, t_st) = (
@@ -66,7 +66,7 @@ impl FootPlan {
             s.stance_s() - 2.0 * self.swing_lead_s,
         );
         let since_lift_off =
-            (s.time_since_lift_off_s(leg, t_s) + self.swing_lead_s).rem_euclid(period);
+            (since_scheduled_lift_off + self.swing_lead_s).rem_euclid(s.period_s());
         let nominal = self.nominal_m[leg.index()];
         if since_lift_off >= t_sw {
             // Stance: tau from the middle of this stance.

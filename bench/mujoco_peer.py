@@ -114,6 +114,23 @@ def main():
         step(model, data, qadr, vadr, job, targets[k % len(targets)])
     out["walk_displacement_m"] = [float(v) for v in data.qpos[0:2] - x0]
     out["walk_height_m"] = float(data.qpos[2])
+    # Fidelity on the heightfield: the same stand and walk from the tile's centre.
+    if "hfield" in job:
+        model, data, qadr, vadr = build(job, True)
+        model.opt.noslip_iterations = 10
+        z0 = job["hfield"]["center_height_m"]
+        reset(model, data, qadr, job, job["spawn_height_m"] + z0)
+        for _ in range(job["stand_steps"]):
+            step(model, data, qadr, vadr, job, q0)
+        x0 = data.qpos[0:2].copy()
+        heights, contacts = [], 0
+        for k in range(job["walk_steps"]):
+            step(model, data, qadr, vadr, job, targets[k % len(targets)])
+            heights.append(data.qpos[2] - z0)
+            contacts += data.ncon
+        out["terrain_walk_displacement_m"] = [float(v) for v in data.qpos[0:2] - x0]
+        out["terrain_walk_mean_height_m"] = float(np.mean(heights))
+        out["terrain_walk_contacts"] = contacts / job["walk_steps"]
     # Speed: default solver settings.
     if job.get("speed_steps", 0) > 0:
         model, data, qadr, vadr = build(job, False)

@@ -12,6 +12,7 @@ pub mod course;
 pub mod curriculum;
 pub mod demo;
 pub mod env;
+pub mod foot_contact;
 pub mod frames;
 pub mod gait;
 pub mod mujoco_env;

@@ -30,6 +30,13 @@ pub struct PeerReport {
     pub stand_torque_nm: Vec<f32>,
     /// Base displacement (x, y) after 10 s of the scripted gait, m.
     pub walk_displacement_m: Vec<f32>,
+    /// Base displacement (x, y) after 10 s of the scripted gait on the heightfield (after
+    /// standing 10 s at the tile's centre), m.
+    pub terrain_walk_displacement_m: Option<Vec<f32>>,
+    /// Mean base height above the tile centre's ground over that walk, m.
+    pub terrain_walk_mean_height_m: Option<f32>,
+    /// Mean contacts per step over that walk.
+    pub terrain_walk_contacts: Option<f64>,
     /// Physics steps per second on flat ground (if measured).
     pub flat_steps_per_s: Option<f64>,
     /// Mean contacts per step on flat ground.
@@ -49,6 +56,17 @@ pub struct FidelityReport {
     pub stand_torque_nm: [f32; NUM_JOINTS],
     /// Base displacement (x, y) after 10 s of the scripted gait, m.
     pub walk_displacement_m: [f32; 2],
+}
+
+/// The scripted gait on the heightfield, measured in rapier like the peer's.
+#[derive(Debug)]
+pub struct HeightfieldWalk {
+    /// Base displacement (x, y) after 10 s of the scripted gait, m.
+    pub displacement_m: [f32; 2],
+    /// Mean base height above the tile centre's ground over the walk, m.
+    pub mean_height_m: f32,
+    /// Mean solver contacts per step over the walk.
+    pub contacts: f64,
 }
 
 /// The gait both simulators walk.
@@ -173,6 +191,35 @@ pub fn run_mujoco(speed_steps: usize, settle_steps: usize) -> anyhow::Result<Pee
     let stdout = String::from_utf8_lossy(&output.stdout);
     serde_json::from_str(stdout.trim())
         .with_context(|| format!("parsing MuJoCo peer output: {stdout}"))
+}
+
+/// Stands 10 s at the centre of [`bench_terrain`], then walks the scripted gait 10 s, with
+/// one contact per foot (the simulator's default) or every triangle's contact.
+pub fn rapier_heightfield_walk(one_contact_per_foot: bool) -> anyhow::Result<HeightfieldWalk> {
+    let model = UrdfModel::load(&default_urdf_path())?;
+    let rough = bench_terrain();
+    let [cx, cy] = rough.tile_center_m(0, 0);
+    let z0 = rough.height_at_m(cx, cy);
+    let mut robot = RobotWorld::new(&model, rough.collider(), 1)?;
+    robot.set_one_contact_per_foot(one_contact_per_foot);
+    robot.reset([cx, cy, SPAWN_HEIGHT_M + z0], [0.0, 0.0, 0.0, 1.0], &Q0_RAD);
+    for _ in 0..STAND_STEPS {
+        robot.step(&Q0_RAD);
+    }
+    let start = robot.state().base_pos_world_m;
+    let gait = reference_gait();
+    let (mut height_sum_m, mut contacts) = (0.0f64, 0usize);
+    for k in 0..WALK_STEPS {
+        robot.step(&gait.joint_targets(k as f32 * PHYSICS_DT_S));
+        height_sum_m += f64::from(robot.state().base_pos_world_m[2] - z0);
+        contacts += robot.num_contact_points();
+    }
+    let end = robot.state().base_pos_world_m;
+    Ok(HeightfieldWalk {
+        displacement_m: [end[0] - start[0], end[1] - start[1]],
+        mean_height_m: (height_sum_m / WALK_STEPS as f64) as f32,
+        contacts: contacts as f64 / WALK_STEPS as f64,
+    })
 }
 
 #[cfg(test)]

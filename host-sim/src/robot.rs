@@ -7,6 +7,7 @@
 //! against the ground shape for the collision flags (penalties, trunk termination), so they
 //! cost nothing in the physics steps in between.
 
+use crate::foot_contact::FootGroundContacts;
 use crate::urdf_model::UrdfModel;
 use hexapod_core::robot::{
     JOINT_NAMES, NUM_JOINTS, NUM_LEGS, Q_MAX_RAD, Q_MIN_RAD, TORQUE_LIMIT_NM, VELOCITY_LIMIT_RAD_S,
@@ -161,6 +162,8 @@ pub struct RobotWorld {
     /// Trunk, thighs (6), shanks (6): shapes tested against the ground on demand.
     probes: Vec<Probe>,
     ground: ColliderHandle,
+    /// Keeps one contact per foot on a heightfield.
+    foot_contacts: FootGroundContacts,
     link_bodies: Vec<RigidBodyHandle>,
     /// URDF link names, in the order of `link_bodies`.
     link_names: Vec<String>,
@@ -444,6 +447,7 @@ impl RobotWorld {
         let joints = find_joint_bodies(model, &handles, links.base)?;
         let probes = make_probes(model, &mut world, &links)?;
         set_contact_materials(&mut world, &links);
+        let foot_contacts = FootGroundContacts::new(ground, links.feet, false);
         let (link_of_joint, dof_of_joint) =
             configure_joints(model, &mut world, links.base, &joints.child_body)?;
         let (link_bodies, nominal_mass) = nominal_masses(&mut world, &handles);
@@ -458,12 +462,14 @@ impl RobotWorld {
             feet: links.feet,
             probes,
             ground,
+            foot_contacts,
             link_bodies,
             link_names: model.robot.links.iter().map(|l| l.name.clone()).collect(),
             nominal_mass,
             drives: DriveParams::default(),
             torque_nm: [0.0; NUM_JOINTS],
         };
+        robot.set_one_contact_per_foot(true);
         robot.reset(
             [0.0, 0.0, 0.35],
             [0.0, 0.0, 0.0, 1.0],
@@ -603,7 +609,10 @@ impl RobotWorld {
             applied[j] += joint_stop_torque_nm(j, state.q_rad[j], state.qdot_rad_s[j]);
         }
         self.apply_joint_torques(&applied);
-        self.world.step();
+        let margin_m = self.world.integration_parameters.prediction_distance();
+        self.foot_contacts
+            .measure(&self.world.colliders, &self.world.narrow_phase, margin_m);
+        self.world.step_with_events(&self.foot_contacts, &());
     }
 
     fn apply_joint_torques(&mut self, torque_nm: &[f32; NUM_JOINTS]) {
@@ -676,6 +685,25 @@ impl RobotWorld {
     /// The rapier integration parameters (solver settings) of this world.
     pub fn integration_parameters_mut(&mut self) -> &mut IntegrationParameters {
         &mut self.world.integration_parameters
+    }
+
+    /// Keeps one contact per foot on a heightfield (the default, [`crate::foot_contact`]) or,
+    /// with `false`, every triangle's contact as rapier makes them. No effect on flat ground.
+    pub fn set_one_contact_per_foot(&mut self, on: bool) {
+        let ground = self.ground;
+        let uneven = self.world.colliders[ground]
+            .shape()
+            .as_heightfield()
+            .is_some();
+        let hooks = if on && uneven {
+            ActiveHooks::MODIFY_SOLVER_CONTACTS
+        } else {
+            ActiveHooks::empty()
+        };
+        for handle in self.feet {
+            self.world.colliders[handle].set_active_hooks(hooks);
+        }
+        self.foot_contacts = FootGroundContacts::new(ground, self.feet, on && uneven);
     }
 
     /// Number of solver contact points (feet on the ground) in the last step.

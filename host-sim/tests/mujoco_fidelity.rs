@@ -3,7 +3,7 @@
 //! within 20 %. Needs `python3` with `mujoco` (installed by `.ci/run`); on CI a missing peer
 //! fails the test, elsewhere it is skipped with a message.
 
-use host_sim::peer::{mujoco_available, rapier_fidelity, run_mujoco};
+use host_sim::peer::{mujoco_available, rapier_fidelity, rapier_heightfield_walk, run_mujoco};
 
 #[test]
 fn rapier_agrees_with_mujoco() {
@@ -58,5 +58,59 @@ fn rapier_agrees_with_mujoco() {
     assert!(
         (d_ours - d_theirs).abs() / d_theirs < 0.20,
         "gait displacement: rapier {d_ours} m vs MuJoCo {d_theirs} m"
+    );
+}
+
+/// One contact per foot on the heightfield (`host_sim::foot_contact`) walks like every
+/// triangle's contacts, and like MuJoCo, with fewer solver contacts: displacement of the
+/// scripted gait within 5 % of the all-triangles run and within 20 % of MuJoCo's (the flat
+/// test's tolerance), mean base height within 3 mm of the all-triangles run and 1 cm of MuJoCo's.
+#[test]
+fn one_contact_per_foot_on_the_heightfield_walks_like_every_triangle_and_like_mujoco() {
+    let one = rapier_heightfield_walk(true).unwrap();
+    let all = rapier_heightfield_walk(false).unwrap();
+    eprintln!("one contact per foot: {one:?}");
+    eprintln!("every triangle:       {all:?}");
+    let distance = |d: &[f32]| d[0].hypot(d[1]);
+    let (d_one, d_all) = (distance(&one.displacement_m), distance(&all.displacement_m));
+    assert!(
+        (d_one - d_all).abs() / d_all < 0.05,
+        "gait displacement: {d_one} m with one contact per foot, {d_all} m with every triangle"
+    );
+    assert!(
+        (one.mean_height_m - all.mean_height_m).abs() < 0.003,
+        "mean height: {} m with one contact per foot, {} m with every triangle",
+        one.mean_height_m,
+        all.mean_height_m
+    );
+    assert!(
+        one.contacts < 0.7 * all.contacts,
+        "solver contacts {} against {}",
+        one.contacts,
+        all.contacts
+    );
+    if !mujoco_available() {
+        assert!(
+            std::env::var("CI").is_err(),
+            "CI must install the MuJoCo peer"
+        );
+        eprintln!("MuJoCo comparison skipped: python3 -c 'import mujoco' fails");
+        return;
+    }
+    let theirs = run_mujoco(0, 0).unwrap();
+    let d_theirs = distance(theirs.terrain_walk_displacement_m.as_deref().unwrap());
+    let h_theirs = theirs.terrain_walk_mean_height_m.unwrap();
+    eprintln!(
+        "MuJoCo: {d_theirs:.3} m, mean height {h_theirs:.4} m, {:.1} contacts",
+        theirs.terrain_walk_contacts.unwrap()
+    );
+    assert!(
+        (d_one - d_theirs).abs() / d_theirs < 0.20,
+        "gait displacement on the heightfield: rapier {d_one} m vs MuJoCo {d_theirs} m"
+    );
+    assert!(
+        (one.mean_height_m - h_theirs).abs() < 0.01,
+        "mean height on the heightfield: rapier {} m vs MuJoCo {h_theirs} m",
+        one.mean_height_m
     );
 }

@@ -335,6 +335,19 @@ impl VecEnv for HexapodEnv {
         }
     }
 
+    fn terrain_tiles(&self) -> Option<Vec<[usize; 2]>> {
+        self.config
+            .terrain
+            .tiles
+            .then(|| self.slots.iter().map(|s| [s.level, s.column]).collect())
+    }
+
+    fn set_terrain_tiles(&mut self, tiles: &[[usize; 2]]) {
+        for (i, [level, column]) in tiles.iter().copied().enumerate().take(self.slots.len()) {
+            self.set_terrain_tile(i, level, column);
+        }
+    }
+
     fn set_command(&mut self, i: usize, command: [f32; 3]) {
         let s = &mut self.slots[i];
         s.fixed_command = Some(command);

@@ -73,6 +73,14 @@ pub trait VecEnv {
     /// resample their commands at different moments instead of all at once; later episodes
     /// start at 0 as usual. The default ignores it (the trainer's point-mass stand-in).
     fn randomize_episode_clocks(&mut self) {}
+    /// Each robot's terrain tile (curriculum row, column) when the robots walk on terrain
+    /// tiles, for a checkpoint to carry the curriculum; `None` otherwise (the default).
+    fn terrain_tiles(&self) -> Option<Vec<[usize; 2]>> {
+        None
+    }
+    /// Puts each robot on its tile of `tiles` from its next reset on (a resumed run's
+    /// curriculum). The default ignores it.
+    fn set_terrain_tiles(&mut self, _tiles: &[[usize; 2]]) {}
     /// Reference states that episodes may start from (reference state initialization);
     /// environments without it ignore them.
     fn set_reference_states(

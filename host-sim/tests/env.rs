@@ -391,3 +391,19 @@ fn robots_spawned_on_stairs_and_blocks_stand() {
         );
     }
 }
+
+#[test]
+fn the_curriculum_tiles_round_trip_and_flat_ground_has_none() {
+    let mut c = quiet_config(6);
+    c.terrain.tiles = true;
+    c.terrain.rows = 4;
+    let mut env = HexapodEnv::new(c).unwrap();
+    let tiles: Vec<[usize; 2]> = (0..6).map(|i| [3 - i % 4, i % 6]).collect();
+    env.set_terrain_tiles(&tiles);
+    env.reset();
+    assert_eq!(env.terrain_tiles(), Some(tiles));
+    assert_eq!(
+        HexapodEnv::new(quiet_config(2)).unwrap().terrain_tiles(),
+        None
+    );
+}

@@ -1,6 +1,7 @@
 //! Checkpoints: `policy.safetensors` (every network and normalizer, f32, candle VarBuilder
 //! keys), `config.toml` (the resolved config), `optimizer.safetensors` (Adam moments and
-//! learning rates) and `state.json` (iteration) in one directory, written atomically.
+//! learning rates) and `state.json` (iteration, and each robot's curriculum tile when the run
+//! trains on terrain tiles) in one directory, written atomically.
 
 use crate::algo::ppo::{Ppo, PpoError};
 use crate::config::TrainConfig;
@@ -86,8 +87,33 @@ fn collect(maps: &[&VarMap]) -> HashMap<String, Tensor> {
     out
 }
 
+/// The runner's state beside the weights (`state.json`).
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RunState {
+    /// Iterations done.
+    pub iteration: usize,
+    /// Each robot's terrain tile (curriculum row, column) when the run trains on tiles, so a
+    /// resumed run goes on from the curriculum it had reached (absent in older checkpoints
+    /// and on flat ground).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub terrain_tiles: Option<Vec<[usize; 2]>>,
+}
+
 /// Writes a checkpoint of `ppo` at `iteration` into `dir` (replacing it atomically).
 pub fn save(dir: &Path, ppo: &Ppo, iteration: usize) -> Result<(), CheckpointError> {
+    save_with_state(
+        dir,
+        ppo,
+        &RunState {
+            iteration,
+            terrain_tiles: None,
+        },
+    )
+}
+
+/// Writes a checkpoint of `ppo` with the runner's `state` into `dir` (replacing it
+/// atomically).
+pub fn save_with_state(dir: &Path, ppo: &Ppo, run_state: &RunState) -> Result<(), CheckpointError> {
     let tmp: PathBuf = dir.with_extension("tmp");
     if tmp.exists() {
         std::fs::remove_dir_all(&tmp).map_err(io(&tmp))?;
@@ -118,8 +144,8 @@ pub fn save(dir: &Path, ppo: &Ppo, iteration: usize) -> Result<(), CheckpointErr
     let cfg_path = tmp.join(CONFIG_FILE);
     std::fs::write(&cfg_path, ppo.cfg.to_toml_string()).map_err(io(&cfg_path))?;
     let state_path = tmp.join(STATE_FILE);
-    std::fs::write(&state_path, format!("{{\"iteration\": {iteration}}}\n"))
-        .map_err(io(&state_path))?;
+    let state_json = serde_json::to_string(run_state).map_err(|e| malformed(&state_path, e))?;
+    std::fs::write(&state_path, state_json + "\n").map_err(io(&state_path))?;
     if dir.exists() {
         std::fs::remove_dir_all(dir).map_err(io(dir))?;
     }
@@ -210,13 +236,14 @@ pub fn load_config(dir: &Path) -> Result<TrainConfig, CheckpointError> {
 
 /// Iteration stored in a checkpoint.
 pub fn load_iteration(dir: &Path) -> Result<usize, CheckpointError> {
+    load_state(dir).map(|s| s.iteration)
+}
+
+/// The runner's state stored in a checkpoint.
+pub fn load_state(dir: &Path) -> Result<RunState, CheckpointError> {
     let path = dir.join(STATE_FILE);
     let text = std::fs::read_to_string(&path).map_err(io(&path))?;
-    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| malformed(&path, e))?;
-    v.get("iteration")
-        .and_then(|i| i.as_u64())
-        .map(|i| i as usize)
-        .ok_or_else(|| malformed(&path, "no `iteration`"))
+    serde_json::from_str(&text).map_err(|e| malformed(&path, e))
 }
 
 fn read_tensors(path: &Path) -> Result<HashMap<String, Tensor>, CheckpointError> {

@@ -127,7 +127,9 @@ impl Runner {
     /// be pushed and resample its command at the same moments for hundreds of iterations).
     pub fn resume(&mut self, dir: &Path) -> Result<(), TrainError> {
         checkpoint::load(dir, &mut self.ppo, true)?;
-        self.iteration = checkpoint::load_iteration(dir)?;
+        let state = checkpoint::load_state(dir)?;
+        self.iteration = state.iteration;
+        self.restore_curriculum(dir, state.terrain_tiles.as_deref());
         self.env.randomize_episode_clocks();
         self.last_checkpoint = Some(dir.to_path_buf());
         // Resuming into a run directory that has a history: keep it up to the checkpoint.
@@ -140,6 +142,26 @@ impl Runner {
                 })?;
         }
         Ok(())
+    }
+
+    /// Puts the robots back on the terrain tiles a checkpoint recorded, and resets them
+    /// there. Without tiles in the checkpoint (older checkpoints, flat ground) or with another
+    /// number of robots, the robots stay on their initial rows, and the latter is said.
+    fn restore_curriculum(&mut self, dir: &Path, tiles: Option<&[[usize; 2]]>) {
+        let (Some(tiles), Some(now)) = (tiles, self.env.terrain_tiles()) else {
+            return;
+        };
+        if tiles.len() != now.len() {
+            eprintln!(
+                "{}: the curriculum of {} robots does not fit this run's {}; the robots start on their initial rows",
+                dir.display(),
+                tiles.len(),
+                now.len()
+            );
+            return;
+        }
+        self.env.set_terrain_tiles(tiles);
+        self.obs = self.env.reset();
     }
 
     /// The last rollout.
@@ -322,7 +344,11 @@ impl Runner {
             .run_dir
             .join("checkpoints")
             .join(format!("model_{:06}", self.iteration));
-        checkpoint::save(&dir, &self.ppo, self.iteration)?;
+        let state = checkpoint::RunState {
+            iteration: self.iteration,
+            terrain_tiles: self.env.terrain_tiles(),
+        };
+        checkpoint::save_with_state(&dir, &self.ppo, &state)?;
         self.last_checkpoint = Some(dir.clone());
         Ok(dir)
     }

@@ -188,3 +188,92 @@ fn a_panic_in_the_environment_saves_the_learner_and_says_so() {
     assert_eq!(resumed.iteration, 3);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A point-mass stand-in that walks "terrain tiles": it reports and takes each robot's
+/// curriculum tile, shared with the test, and counts its resets.
+struct TiledEnv {
+    inner: PointMassEnv,
+    tiles: std::sync::Arc<std::sync::Mutex<Vec<[usize; 2]>>>,
+    resets: std::sync::Arc<std::sync::atomic::AtomicUsize>,
+}
+
+impl TiledEnv {
+    fn new(n: usize) -> Self {
+        Self {
+            inner: PointMassEnv::new(n, 100, true, true, 1),
+            tiles: std::sync::Arc::new(std::sync::Mutex::new(vec![[0, 0]; n])),
+            resets: Default::default(),
+        }
+    }
+}
+
+impl VecEnv for TiledEnv {
+    fn num_envs(&self) -> usize {
+        self.inner.num_envs()
+    }
+    fn reset(&mut self) -> Observations {
+        self.resets
+            .fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        self.inner.reset()
+    }
+    fn set_command(&mut self, i: usize, command: [f32; 3]) {
+        self.inner.set_command(i, command);
+    }
+    fn step(&mut self, actions: &[f32]) -> StepResult {
+        self.inner.step(actions)
+    }
+    fn terrain_tiles(&self) -> Option<Vec<[usize; 2]>> {
+        Some(self.tiles.lock().unwrap().clone())
+    }
+    fn set_terrain_tiles(&mut self, tiles: &[[usize; 2]]) {
+        self.tiles.lock().unwrap().copy_from_slice(tiles);
+    }
+}
+
+#[test]
+fn a_resumed_run_goes_on_from_the_curriculum_its_checkpoint_recorded() {
+    let mut cfg = smoke_config();
+    cfg.env.num_envs = 8;
+    cfg.runner.max_iterations = 1;
+    let dir = run_dir("curriculum");
+    let env = TiledEnv::new(8);
+    let reached: Vec<[usize; 2]> = (0..8).map(|i| [i % 6, i % 3]).collect();
+    *env.tiles.lock().unwrap() = reached.clone();
+    let mut runner = Runner::new(&cfg, Box::new(env), priors(), &dir).unwrap();
+    let ckpt = runner.learn(false).unwrap();
+    assert_eq!(
+        checkpoint::load_state(&ckpt).unwrap().terrain_tiles,
+        Some(reached.clone())
+    );
+
+    // A new run of the same size starts on the recorded tiles, reset onto them.
+    let fresh = TiledEnv::new(8);
+    let (tiles, resets) = (fresh.tiles.clone(), fresh.resets.clone());
+    let mut resumed =
+        Runner::new(&cfg, Box::new(fresh), priors(), &run_dir("curriculum-b")).unwrap();
+    let resets_before = resets.load(std::sync::atomic::Ordering::SeqCst);
+    resumed.resume(&ckpt).unwrap();
+    assert_eq!(*tiles.lock().unwrap(), reached);
+    assert_eq!(
+        resets.load(std::sync::atomic::Ordering::SeqCst),
+        resets_before + 1
+    );
+
+    // Another number of robots keeps its initial rows; so does a checkpoint without tiles.
+    let mut cfg4 = cfg.clone();
+    cfg4.env.num_envs = 4;
+    let other = TiledEnv::new(4);
+    let tiles4 = other.tiles.clone();
+    let mut four = Runner::new(&cfg4, Box::new(other), priors(), &run_dir("curriculum-c")).unwrap();
+    four.resume(&ckpt).unwrap();
+    assert_eq!(*tiles4.lock().unwrap(), vec![[0, 0]; 4]);
+    std::fs::write(ckpt.join(checkpoint::STATE_FILE), "{\"iteration\": 1}").unwrap();
+    let old = TiledEnv::new(8);
+    let tiles_old = old.tiles.clone();
+    let mut from_old =
+        Runner::new(&cfg, Box::new(old), priors(), &run_dir("curriculum-d")).unwrap();
+    from_old.resume(&ckpt).unwrap();
+    assert_eq!(from_old.iteration, 1);
+    assert_eq!(*tiles_old.lock().unwrap(), vec![[0, 0]; 8]);
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -63,11 +63,6 @@ impl FootGroundContacts {
         }
     }
 
-    /// Whether the hook filters the feet's contacts.
-    pub fn is_active(&self) -> bool {
-        self.active
-    }
-
     /// The leg of a contact pair with the ground, if the pair is one.
     fn leg_of(&self, a: ColliderHandle, b: ColliderHandle) -> Option<usize> {
         let foot = if a == self.ground {

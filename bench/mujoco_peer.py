@@ -5,7 +5,8 @@ Reads a JSON job written by `hexapod-sim bench` or host-sim's fidelity test (nom
 one period of gait joint targets at the physics rate, drive gains and limits, an optional
 heightfield) and prints one JSON object: physics steps/s on flat ground and on the
 heightfield, mean contact counts, and the fidelity figures (standing base height and joint
-torques with noslip on; base displacement under the scripted gait).
+torques with noslip on; base displacement and the loaded feet's sliding speed under the
+scripted gait).
 """
 import json
 import sys
@@ -81,6 +82,28 @@ def step(model, data, qadr, vadr, job, qd):
     return tau
 
 
+def foot_geoms(model):
+    """The six foot spheres (the URDF's only sphere geoms)."""
+    feet = [g for g in range(model.ngeom) if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE]
+    if len(feet) != 6:
+        raise SystemExit(f"expected 6 foot spheres, found {len(feet)}")
+    return feet
+
+
+def loaded_foot_speeds(model, data, feet, feet_before, dt_s):
+    """Horizontal speed over the last step of each foot carrying more than 20 N (normal)."""
+    normal_n = np.zeros(len(feet))
+    wrench = np.zeros(6)
+    for c in range(data.ncon):
+        con = data.contact[c]
+        for i, g in enumerate(feet):
+            if g in (con.geom1, con.geom2):
+                mujoco.mj_contactForce(model, data, c, wrench)
+                normal_n[i] += abs(wrench[0])
+    moved = data.geom_xpos[feet][:, 0:2] - feet_before[:, 0:2]
+    return [float(np.linalg.norm(moved[i]) / dt_s) for i in range(len(feet)) if normal_n[i] > 20.0]
+
+
 def timed_walk(model, data, qadr, vadr, job, steps):
     targets = np.array(job["gait_targets_rad"])
     q0 = np.array(job["q0_rad"])
@@ -110,9 +133,15 @@ def main():
     out["stand_torque_nm"] = [float(t) for t in tau]
     targets = np.array(job["gait_targets_rad"])
     x0 = data.qpos[0:2].copy()
+    feet = foot_geoms(model)
+    feet_before = data.geom_xpos[feet].copy()
+    slide_m_s = []
     for k in range(job["walk_steps"]):
         step(model, data, qadr, vadr, job, targets[k % len(targets)])
+        slide_m_s += loaded_foot_speeds(model, data, feet, feet_before, job["dt_s"])
+        feet_before = data.geom_xpos[feet].copy()
     out["walk_displacement_m"] = [float(v) for v in data.qpos[0:2] - x0]
+    out["walk_loaded_foot_speed_m_s"] = [float(np.median(slide_m_s)), float(np.percentile(slide_m_s, 90))]
     out["walk_height_m"] = float(data.qpos[2])
     # Fidelity on the heightfield: the same stand and walk from the tile's centre.
     if "hfield" in job:

@@ -107,6 +107,11 @@ pub struct EnvConfig {
     pub episode_length_s: f32,
     /// Rapier solver iterations per physics step.
     pub solver_iterations: usize,
+    /// Solve foot friction in both passes of each solver substep (the simulator's default,
+    /// [`crate::robot::RobotWorld::set_friction_in_bias_pass`]); `false` is rapier's own
+    /// default, under which loaded feet slide (BENCHMARKS.md, foot slip). Runs trained before
+    /// the change set `false` to be reproduced.
+    pub friction_in_bias_pass: bool,
     /// Add observation noise to the actor's inputs.
     pub observation_noise: bool,
     /// Terminate when the base tilts beyond this angle, degrees.
@@ -145,6 +150,7 @@ impl Default for EnvConfig {
             seed: 1,
             episode_length_s: hexapod_core::timing::EPISODE_LENGTH_S,
             solver_iterations: 1,
+            friction_in_bias_pass: true,
             observation_noise: true,
             max_tilt_deg: 60.0,
             curriculum: true,

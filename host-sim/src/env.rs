@@ -145,7 +145,8 @@ impl HexapodEnv {
         let max_episode_steps = (config.episode_length_s / POLICY_DT_S).round() as usize;
         let slots: Result<Vec<Slot>, EnvError> = (0..config.num_envs)
             .map(|i| {
-                let robot = RobotWorld::new(model, ground.clone(), config.solver_iterations)?;
+                let mut robot = RobotWorld::new(model, ground.clone(), config.solver_iterations)?;
+                robot.set_friction_in_bias_pass(config.friction_in_bias_pass);
                 let mut rng = ChaCha8Rng::seed_from_u64(
                     config.seed.wrapping_mul(0x9E37_79B9).wrapping_add(i as u64),
                 );

@@ -7,7 +7,9 @@ use crate::robot::RobotWorld;
 use crate::terrain::{Terrain, TerrainConfig, TileKind};
 use crate::urdf_model::{default_urdf_path, UrdfModel};
 use anyhow::{bail, Context};
-use hexapod_core::robot::{JOINT_NAMES, NUM_JOINTS, Q0_RAD, TORQUE_LIMIT_NM, VELOCITY_LIMIT_RAD_S};
+use hexapod_core::robot::{
+    JOINT_NAMES, NUM_JOINTS, NUM_LEGS, Q0_RAD, TORQUE_LIMIT_NM, VELOCITY_LIMIT_RAD_S,
+};
 use hexapod_core::timing::{CSP_KP1_PER_S, CSP_KP2_NMS_PER_RAD, PHYSICS_DT_S};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -18,6 +20,9 @@ pub const STAND_STEPS: usize = 2000;
 pub const WALK_STEPS: usize = 2000;
 /// Base height at spawn, m.
 pub const SPAWN_HEIGHT_M: f32 = 0.35;
+/// Normal force above which a foot counts as loaded when measuring foot slide, N (the
+/// robot's weight is about 250 N, so a stance foot carries 40-80 N).
+pub const LOADED_FOOT_N: f32 = 20.0;
 
 /// What MuJoCo reported.
 #[derive(Debug, Deserialize)]
@@ -30,6 +35,9 @@ pub struct PeerReport {
     pub stand_torque_nm: Vec<f32>,
     /// Base displacement (x, y) after 10 s of the scripted gait, m.
     pub walk_displacement_m: Vec<f32>,
+    /// Horizontal speed of feet loaded above [`LOADED_FOOT_N`] over that walk, median and
+    /// 90th percentile over (foot, step) samples, m/s.
+    pub walk_loaded_foot_speed_m_s: Vec<f32>,
     /// Base displacement (x, y) after 10 s of the scripted gait on the heightfield (after
     /// standing 10 s at the tile's centre), m.
     pub terrain_walk_displacement_m: Option<Vec<f32>>,
@@ -56,6 +64,9 @@ pub struct FidelityReport {
     pub stand_torque_nm: [f32; NUM_JOINTS],
     /// Base displacement (x, y) after 10 s of the scripted gait, m.
     pub walk_displacement_m: [f32; 2],
+    /// Horizontal speed of feet loaded above [`LOADED_FOOT_N`] over that walk, median and
+    /// 90th percentile, m/s: how much stance feet slide.
+    pub walk_loaded_foot_speed_m_s: [f32; 2],
 }
 
 /// The scripted gait on the heightfield, measured in rapier like the peer's.
@@ -105,15 +116,40 @@ pub fn rapier_fidelity() -> anyhow::Result<FidelityReport> {
     let stand_height_m = s.base_pos_world_m[2];
     let stand_torque_nm = robot.torque_nm;
     let gait = reference_gait();
+    let mut feet_before = robot.foot_positions_world_m();
+    let mut slide_m_s = Vec::with_capacity(WALK_STEPS * NUM_LEGS);
     for k in 0..WALK_STEPS {
         robot.step(&gait.joint_targets(k as f32 * PHYSICS_DT_S));
+        let feet = robot.foot_positions_world_m();
+        let force_n = robot.foot_forces_world_n();
+        for leg in 0..NUM_LEGS {
+            if force_n[leg][2] > LOADED_FOOT_N {
+                let moved_m =
+                    (feet[leg][0] - feet_before[leg][0]).hypot(feet[leg][1] - feet_before[leg][1]);
+                slide_m_s.push(moved_m / PHYSICS_DT_S);
+            }
+        }
+        feet_before = feet;
     }
     let e = robot.state().base_pos_world_m;
     Ok(FidelityReport {
         stand_height_m,
         stand_torque_nm,
         walk_displacement_m: [e[0] - s.base_pos_world_m[0], e[1] - s.base_pos_world_m[1]],
+        walk_loaded_foot_speed_m_s: [
+            percentile(&mut slide_m_s, 0.5),
+            percentile(&mut slide_m_s, 0.9),
+        ],
     })
+}
+
+/// The `q` quantile (nearest rank below) of `values`; 0 for none.
+fn percentile(values: &mut [f32], q: f32) -> f32 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    values.sort_by(f32::total_cmp);
+    values[((values.len() - 1) as f32 * q) as usize]
 }
 
 /// The peer script shipped with the project.

@@ -33,6 +33,8 @@ pub struct Sil {
     pub config: ControllerConfig,
     /// When [`Sil::stand_up`] reached `Walking`, s.
     pub stood_up_at_s: Option<f32>,
+    /// When the last safe sit-down began (the supervisor's `SafeSitDown { since_us }`), s.
+    pub sit_down_at_s: Option<f32>,
 }
 
 impl Sil {
@@ -60,6 +62,7 @@ impl Sil {
             h,
             config,
             stood_up_at_s: None,
+            sit_down_at_s: None,
         }
     }
 
@@ -80,7 +83,18 @@ impl Sil {
 
     /// Runs control cycles with `policy` for `seconds`.
     pub fn run<P: Policy>(&mut self, seconds: f32, policy: &mut P) {
-        self.h.run(seconds, policy, &mut physics);
+        let cycles = (seconds / POLICY_DT_S).round() as usize;
+        for _ in 0..cycles {
+            self.cycle(policy);
+        }
+    }
+
+    /// One control cycle; notes when a safe sit-down begins.
+    fn cycle<P: Policy>(&mut self, policy: &mut P) {
+        self.h.cycle(policy, &mut physics);
+        if let Mode::SafeSitDown { since_us, .. } = self.mode() {
+            self.sit_down_at_s = Some(since_us as f32 * 1e-6);
+        }
     }
 
     /// Runs control cycles until `done(mode)` or `max_s` passed; true when `done`.
@@ -95,7 +109,7 @@ impl Sil {
             if done(self.mode()) {
                 return true;
             }
-            self.h.cycle(policy, &mut physics);
+            self.cycle(policy);
         }
         done(self.mode())
     }

@@ -83,10 +83,16 @@ fn a_sideways_push_while_standing_is_absorbed() {
         .fold(0.0, f32::max);
     assert!(tilt < 0.3, "tilted {tilt} rad");
     assert!(trace.first_trunk_contact(t_push).is_none());
-    let moved_m = sil.plant().state().base_pos_world_m[1];
+    // The planted feet hold the body (it springs back by a few mm): what shows the push
+    // reached it is its sideways speed just after.
+    let peak_vy_m_s = trace
+        .since(t_push)
+        .iter()
+        .map(|s| s.base_vel_world_m_s[1])
+        .fold(0.0, f32::max);
     assert!(
-        moved_m > 0.005,
-        "the push did not reach the body: y {moved_m}"
+        peak_vy_m_s > 0.25,
+        "the push did not reach the body: peak vy {peak_vy_m_s} m/s"
     );
     let z = sil.plant().state().base_pos_world_m[2];
     assert!(

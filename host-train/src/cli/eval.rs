@@ -118,6 +118,10 @@ pub struct CommandResult {
     /// rate for a pure turn): how well the average gait tracks, without the within-stride
     /// oscillation that `lin_vel_error_m_s` includes.
     pub speed_error_pct: f64,
+    /// Mean of the estimator's planar velocity estimate over the same samples as
+    /// `mean_velocity` (absent without an estimator): against `mean_velocity`, the
+    /// estimator's bias at this command.
+    pub mean_estimated_velocity: Option<[f64; 2]>,
 }
 
 /// The push test: robots walk at a fixed command for a full episode and are shoved at a
@@ -374,6 +378,7 @@ pub fn track_command(
     let (mut tripod, mut contact_samples) = (0usize, 0usize);
     let mut feet_down = [0usize; 7];
     let mut leg_stance = [0usize; NUM_LEGS];
+    let (mut mean_estimate, mut estimator_seen) = ([0.0f64; 2], false);
     for step in 0..steps {
         let act = ppo.act(&obs, true)?;
         if let (Some((rec, t0_s)), Some(sim)) = (recording.as_mut(), env.sim()) {
@@ -407,6 +412,12 @@ pub fn track_command(
                 yaw_err += (v[2] - command[2]).abs() as f64;
                 for k in 0..3 {
                     mean_v[k] += v[k] as f64;
+                }
+                if !act.estimate.is_empty() {
+                    estimator_seen = true;
+                    for k in 0..2 {
+                        mean_estimate[k] += (act.estimate[i * 3 + k] / LIN_VEL_SCALE) as f64;
+                    }
                 }
                 samples += 1;
                 let mask = contact_mask(p);
@@ -442,6 +453,7 @@ pub fn track_command(
         tripod_score: tripod as f64 / contact_samples.max(1) as f64,
         feet_down_fraction: feet_down.map(|k| k as f64 / contact_samples.max(1) as f64),
         stance_fraction_per_leg: leg_stance.map(|k| k as f64 / contact_samples.max(1) as f64),
+        mean_estimated_velocity: estimator_seen.then(|| mean_estimate.map(|e| e / s)),
     })
 }
 

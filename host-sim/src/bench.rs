@@ -38,6 +38,10 @@ pub struct BenchArgs {
     /// Skip the MuJoCo peer.
     #[arg(long)]
     pub no_mujoco: bool,
+    /// Solve friction only in the unbiased solver pass (rapier's default, the simulator's
+    /// before its feet held: `EnvConfig::friction_in_bias_pass`), to time the difference.
+    #[arg(long)]
+    pub friction_unbiased_pass_only: bool,
 }
 
 /// CPU time of the calling thread, s: unlike wall time, it does not count the time other
@@ -63,9 +67,11 @@ fn time_single(
     spawn_z: f32,
     steps: usize,
     iterations: usize,
+    friction_in_bias_pass: bool,
 ) -> anyhow::Result<SingleResult> {
     let model = UrdfModel::load(&default_urdf_path())?;
     let mut robot = RobotWorld::new(&model, ground, iterations)?;
+    robot.set_friction_in_bias_pass(friction_in_bias_pass);
     robot.reset([0.0, 0.0, spawn_z], [0.0, 0.0, 0.0, 1.0], &Q0_RAD);
     for _ in 0..400 {
         robot.step(&Q0_RAD);
@@ -93,6 +99,7 @@ fn time_env(args: &BenchArgs, terrain: bool) -> anyhow::Result<f64> {
     let mut config = EnvConfig {
         num_envs: args.envs,
         solver_iterations: args.solver_iterations,
+        friction_in_bias_pass: !args.friction_unbiased_pass_only,
         ..Default::default()
     };
     if terrain {
@@ -150,13 +157,21 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         "[bench] rapier, 1 robot, 1 thread, {} physics steps per case ...",
         args.steps
     );
+    let friction_in_bias_pass = !args.friction_unbiased_pass_only;
     let flat = time_single(
         flat_ground,
         SPAWN_HEIGHT_M,
         args.steps,
         args.solver_iterations,
+        friction_in_bias_pass,
     )?;
-    let terr = time_single(rough_ground, z_rough, args.steps, args.solver_iterations)?;
+    let terr = time_single(
+        rough_ground,
+        z_rough,
+        args.steps,
+        args.solver_iterations,
+        friction_in_bias_pass,
+    )?;
     eprintln!(
         "[bench] rapier env, {} robots, {} threads ...",
         args.envs, args.threads

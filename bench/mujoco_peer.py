@@ -90,18 +90,17 @@ def foot_geoms(model):
     return feet
 
 
-def loaded_foot_speeds(model, data, feet, feet_before, dt_s):
-    """Horizontal speed over the last step of each foot carrying more than 20 N (normal)."""
+def loaded_feet(model, data, feet):
+    """Whether each foot carries more than 20 N (normal contact force)."""
     normal_n = np.zeros(len(feet))
     wrench = np.zeros(6)
     for c in range(data.ncon):
         con = data.contact[c]
         for i, g in enumerate(feet):
-            if g in (con.geom1, con.geom2):
+            if g in (con.geom[0], con.geom[1]):
                 mujoco.mj_contactForce(model, data, c, wrench)
                 normal_n[i] += abs(wrench[0])
-    moved = data.geom_xpos[feet][:, 0:2] - feet_before[:, 0:2]
-    return [float(np.linalg.norm(moved[i]) / dt_s) for i in range(len(feet)) if normal_n[i] > 20.0]
+    return normal_n > 20.0
 
 
 def timed_walk(model, data, qadr, vadr, job, steps):
@@ -133,13 +132,21 @@ def main():
     out["stand_torque_nm"] = [float(t) for t in tau]
     targets = np.array(job["gait_targets_rad"])
     x0 = data.qpos[0:2].copy()
+    # After mj_step, geom_xpos and the contact forces are those of the step's start: the
+    # motion from one call to the next is paired with the loads measured at its start.
     feet = foot_geoms(model)
-    feet_before = data.geom_xpos[feet].copy()
+    feet_before, loaded_before = data.geom_xpos[feet].copy(), None
     slide_m_s = []
     for k in range(job["walk_steps"]):
         step(model, data, qadr, vadr, job, targets[k % len(targets)])
-        slide_m_s += loaded_foot_speeds(model, data, feet, feet_before, job["dt_s"])
-        feet_before = data.geom_xpos[feet].copy()
+        loaded = loaded_feet(model, data, feet)
+        if loaded_before is not None:
+            moved = data.geom_xpos[feet][:, 0:2] - feet_before[:, 0:2]
+            slide_m_s += [float(np.linalg.norm(moved[i]) / job["dt_s"])
+                          for i in range(len(feet)) if loaded_before[i]]
+        feet_before, loaded_before = data.geom_xpos[feet].copy(), loaded
+    if not slide_m_s:
+        raise SystemExit("no loaded foot in the scripted walk")
     out["walk_displacement_m"] = [float(v) for v in data.qpos[0:2] - x0]
     out["walk_loaded_foot_speed_m_s"] = [float(np.median(slide_m_s)), float(np.percentile(slide_m_s, 90))]
     out["walk_height_m"] = float(data.qpos[2])

@@ -67,6 +67,8 @@ pub struct FidelityReport {
     /// Horizontal speed of feet loaded above [`LOADED_FOOT_N`] over that walk, median and
     /// 90th percentile, m/s: how much stance feet slide.
     pub walk_loaded_foot_speed_m_s: [f32; 2],
+    /// The (foot, step) samples those figures come from.
+    pub walk_loaded_foot_samples: usize,
 }
 
 /// The scripted gait on the heightfield, measured in rapier like the peer's.
@@ -136,6 +138,7 @@ pub fn rapier_fidelity() -> anyhow::Result<FidelityReport> {
         stand_height_m,
         stand_torque_nm,
         walk_displacement_m: [e[0] - s.base_pos_world_m[0], e[1] - s.base_pos_world_m[1]],
+        walk_loaded_foot_samples: slide_m_s.len(),
         walk_loaded_foot_speed_m_s: [
             percentile(&mut slide_m_s, 0.5),
             percentile(&mut slide_m_s, 0.9),

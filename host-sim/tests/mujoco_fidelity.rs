@@ -1,9 +1,12 @@
 //! Fidelity against MuJoCo on the same URDF, dt and drive law: standing base height within
 //! 1 cm, standing joint torques within 10 %, base displacement under the scripted tripod gait
-//! within 20 %, loaded feet sliding (90th percentile of their speed) within 0.03 m/s. Needs `python3` with `mujoco` (installed by `.ci/run`); on CI a missing peer
+//! within 20 %, loaded feet sliding (90th percentile of their speed) within 0.03 m/s of
+//! MuJoCo's. Needs `python3` with `mujoco` (installed by `.ci/run`); on CI a missing peer
 //! fails the test, elsewhere it is skipped with a message.
 
-use host_sim::peer::{mujoco_available, rapier_fidelity, rapier_heightfield_walk, run_mujoco};
+use host_sim::peer::{
+    self, mujoco_available, rapier_fidelity, rapier_heightfield_walk, run_mujoco,
+};
 
 /// Whether the MuJoCo peer runs here; on CI its absence fails the test.
 fn peer_runs() -> bool {
@@ -71,6 +74,12 @@ fn rapier_agrees_with_mujoco() {
     );
     // Stance feet hold: with friction solved in one solver pass, a tenth of rapier's loaded
     // foot samples slid at about 0.5 m/s (p90 0.47 m/s against MuJoCo's 0.016).
+    // About three loaded feet per step of the walk.
+    assert!(
+        ours.walk_loaded_foot_samples > peer::WALK_STEPS,
+        "{} loaded-foot samples",
+        ours.walk_loaded_foot_samples
+    );
     let [median, p90] = ours.walk_loaded_foot_speed_m_s;
     let (their_median, their_p90) = (
         theirs.walk_loaded_foot_speed_m_s[0],

@@ -173,8 +173,8 @@ pub enum Step {
         /// The trunk has not touched the ground while any drive had torque.
         #[serde(default)]
         trunk_clear: bool,
-        /// The base never sank faster than this since the last safe sit-down began (since it
-        /// stood up, when none did), m/s.
+        /// The base never sank faster than this since the robot stopped walking after standing
+        /// up (since it stood up, when it did not), m/s.
         #[serde(default)]
         max_sink_speed_m_s: Option<f32>,
         /// The base never tilted more than this since it stood up, rad.
@@ -404,8 +404,10 @@ fn expect(
     }
     if max_sink_speed_m_s.is_some() || max_tilt_rad.is_some() {
         let since_s = sil.stood_up_at_s.ok_or("the robot never stood up")?;
-        // A walking trunk bobs at up to about 0.2 m/s: the sink limit is the sit-down's.
-        let sink_since_s = sil.sit_down_at_s.unwrap_or(since_s).max(since_s);
+        // A walking trunk bobs at up to about 0.2 m/s: the sink limit holds from the moment
+        // the robot stops walking (a fault's hold and sit-down), or from standing up while it
+        // has not.
+        let sink_since_s = sil.left_walking_at_s.unwrap_or(since_s).max(since_s);
         let sink = trace.max_sink_speed_m_s(sink_since_s, f32::INFINITY);
         if max_sink_speed_m_s.is_some_and(|max| sink > max) {
             return Err(format!("sank at {sink} m/s"));

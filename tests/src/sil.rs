@@ -33,8 +33,9 @@ pub struct Sil {
     pub config: ControllerConfig,
     /// When [`Sil::stand_up`] reached `Walking`, s.
     pub stood_up_at_s: Option<f32>,
-    /// When the last safe sit-down began (the supervisor's `SafeSitDown { since_us }`), s.
-    pub sit_down_at_s: Option<f32>,
+    /// When the supervisor first left `Walking` after [`Sil::stand_up`] (a fault's hold or
+    /// sit-down, a disarm), s.
+    pub left_walking_at_s: Option<f32>,
 }
 
 impl Sil {
@@ -62,7 +63,7 @@ impl Sil {
             h,
             config,
             stood_up_at_s: None,
-            sit_down_at_s: None,
+            left_walking_at_s: None,
         }
     }
 
@@ -89,11 +90,14 @@ impl Sil {
         }
     }
 
-    /// One control cycle; notes when a safe sit-down begins.
+    /// One control cycle; notes when the robot first stops walking after standing up.
     fn cycle<P: Policy>(&mut self, policy: &mut P) {
         self.h.cycle(policy, &mut physics);
-        if let Mode::SafeSitDown { since_us, .. } = self.mode() {
-            self.sit_down_at_s = Some(since_us as f32 * 1e-6);
+        if self.stood_up_at_s.is_some()
+            && self.left_walking_at_s.is_none()
+            && self.mode() != Mode::Walking
+        {
+            self.left_walking_at_s = Some(self.time_s());
         }
     }
 
@@ -154,6 +158,7 @@ impl Sil {
         self.h.rc.set_arm(true);
         if self.run_until(5.0, &mut ZeroPolicy, |m| m == Mode::Walking) {
             self.stood_up_at_s = Some(self.time_s());
+            self.left_walking_at_s = None;
             Ok(())
         } else {
             Err(self.mode())

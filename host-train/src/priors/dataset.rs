@@ -194,12 +194,17 @@ impl MotionDataset {
 
     /// Loads `dir` with the states `kind` asks for: for [`PriorStates::Tracked`] every clip
     /// is replayed in the simulator on flat ground (about 0.1 s per clip in a release
-    /// build) and a clip the simulator cannot perform is refused.
-    pub fn load(dir: &Path, kind: PriorStates) -> Result<Self, DatasetError> {
+    /// build), with the training's foot friction (`friction_in_bias_pass`,
+    /// `host_sim::config::EnvConfig`), and a clip the simulator cannot perform is refused.
+    pub fn load(
+        dir: &Path,
+        kind: PriorStates,
+        friction_in_bias_pass: bool,
+    ) -> Result<Self, DatasetError> {
         let clips = load_clips(dir)?;
         let motions = match kind {
             PriorStates::Optimized => clips.iter().map(ReferenceMotion::from_clip).collect(),
-            PriorStates::Tracked => track_clips(dir, &clips)?,
+            PriorStates::Tracked => track_clips(dir, &clips, friction_in_bias_pass)?,
         };
         Ok(Self::with_motions(dir.to_path_buf(), clips, motions))
     }
@@ -347,7 +352,11 @@ fn load_clips(dir: &Path) -> Result<Vec<MotionClip>, DatasetError> {
 }
 
 /// Each clip as the simulator performs it: its replay's states after the warm-up.
-fn track_clips(dir: &Path, clips: &[MotionClip]) -> Result<Vec<ReferenceMotion>, DatasetError> {
+fn track_clips(
+    dir: &Path,
+    clips: &[MotionClip],
+    friction_in_bias_pass: bool,
+) -> Result<Vec<ReferenceMotion>, DatasetError> {
     use host_sim::robot::RobotWorld;
     use host_sim::terrain::{Terrain, TerrainConfig};
     use host_sim::urdf_model::{default_urdf_path, UrdfModel};
@@ -364,6 +373,7 @@ fn track_clips(dir: &Path, clips: &[MotionClip]) -> Result<Vec<ReferenceMotion>,
         .map(|clip| {
             let mut robot =
                 RobotWorld::new(&model, ground.clone(), 1).map_err(|e| tracking(e.to_string()))?;
+            robot.set_friction_in_bias_pass(friction_in_bias_pass);
             let report = replay_clip(&mut robot, clip, &cfg);
             // A fall is refused; a velocity off the clip's command is what the robot does,
             // so the motion is labelled with the velocity it realizes.

@@ -232,8 +232,8 @@ fn interpolation_joins_neighbouring_frames_and_wraps_the_cycle() {
 #[test]
 fn tracked_states_are_the_simulator_performing_the_clips() {
     let dir = committed_dir();
-    let tracked = MotionDataset::load(&dir, PriorStates::Tracked).unwrap();
-    let optimized = MotionDataset::load(&dir, PriorStates::Optimized).unwrap();
+    let tracked = MotionDataset::load(&dir, PriorStates::Tracked, true).unwrap();
+    let optimized = MotionDataset::load(&dir, PriorStates::Optimized, true).unwrap();
     assert_eq!(tracked.motions().len(), optimized.motions().len());
     let forward = tracked
         .motions()
@@ -363,8 +363,10 @@ fn robot() -> RobotWorld {
 
 #[test]
 fn every_shipped_clip_walks_at_its_command_in_the_simulator() {
-    // The presets' priors. (The plain set's five fastest combined turning clips turn 25-30 %
-    // faster than commanded in this replay and 21-22 % in MuJoCo's: assets/priors/README.md.)
+    // The flat-ground and ablation presets' priors. (The plain set `assets/priors`, which
+    // `rough-tripod.toml` reads, has five combined turning clips that turn 25-30 % faster
+    // than commanded in this replay and 21-22 % in MuJoCo's: assets/priors/README.md; the
+    // climbing set `assets/priors-climb` four, its README says so.)
     let data = MotionDataset::load_dir(&committed_dir().join("../priors-sync")).unwrap();
     let cfg = ReplayConfig::default();
     for c in data.clips() {

@@ -231,7 +231,20 @@ pub fn display_name(dir: &Path) -> String {
 pub fn load_config(dir: &Path) -> Result<TrainConfig, CheckpointError> {
     let path = dir.join(CONFIG_FILE);
     let text = std::fs::read_to_string(&path).map_err(io(&path))?;
+    if predates_foot_friction_setting(&text) {
+        eprintln!(
+            "note: {} was trained before the simulator's feet held (no \
+             `sim.friction_in_bias_pass`); it runs with feet that hold (BENCHMARKS.md, foot slip)",
+            path.display()
+        );
+    }
     TrainConfig::from_toml_str(&text, &path.display().to_string()).map_err(|e| malformed(&path, e))
+}
+
+/// Whether a saved config was written before the simulator had the foot-friction setting
+/// (every resolved config written since names it).
+fn predates_foot_friction_setting(config_toml: &str) -> bool {
+    !config_toml.contains("friction_in_bias_pass")
 }
 
 /// Iteration stored in a checkpoint.
@@ -359,6 +372,13 @@ pub fn load_for_inference(dir: &Path) -> Result<(TrainConfig, Ppo), CheckpointEr
 mod tests {
     use super::*;
     use crate::config::{EnvKind, PriorKind};
+
+    #[test]
+    fn a_config_saved_now_names_the_foot_friction_setting() {
+        let text = TrainConfig::default().to_toml_string();
+        assert!(!predates_foot_friction_setting(&text), "{text}");
+        assert!(predates_foot_friction_setting("[sim]\nseed = 1\n"));
+    }
 
     fn tiny() -> TrainConfig {
         let mut c = TrainConfig::default();

@@ -134,25 +134,22 @@ pub fn rapier_fidelity() -> anyhow::Result<FidelityReport> {
         feet_before = feet;
     }
     let e = robot.state().base_pos_world_m;
+    slide_m_s.sort_by(f32::total_cmp);
     Ok(FidelityReport {
         stand_height_m,
         stand_torque_nm,
         walk_displacement_m: [e[0] - s.base_pos_world_m[0], e[1] - s.base_pos_world_m[1]],
         walk_loaded_foot_samples: slide_m_s.len(),
-        walk_loaded_foot_speed_m_s: [
-            percentile(&mut slide_m_s, 0.5),
-            percentile(&mut slide_m_s, 0.9),
-        ],
+        walk_loaded_foot_speed_m_s: [quantile(&slide_m_s, 0.5), quantile(&slide_m_s, 0.9)],
     })
 }
 
-/// The `q` quantile (nearest rank below) of `values`; 0 for none.
-fn percentile(values: &mut [f32], q: f32) -> f32 {
-    if values.is_empty() {
+/// The `q` quantile (nearest rank below) of ascending `sorted`; 0 for none.
+fn quantile(sorted: &[f32], q: f32) -> f32 {
+    if sorted.is_empty() {
         return 0.0;
     }
-    values.sort_by(f32::total_cmp);
-    values[((values.len() - 1) as f32 * q) as usize]
+    sorted[((sorted.len() - 1) as f32 * q) as usize]
 }
 
 /// The peer script shipped with the project.

@@ -72,14 +72,14 @@ fn rapier_agrees_with_mujoco() {
         (d_ours - d_theirs).abs() / d_theirs < 0.20,
         "gait displacement: rapier {d_ours} m vs MuJoCo {d_theirs} m"
     );
-    // Stance feet hold: with friction solved in one solver pass, a tenth of rapier's loaded
-    // foot samples slid at about 0.5 m/s (p90 0.47 m/s against MuJoCo's 0.016).
     // About three loaded feet per step of the walk.
     assert!(
         ours.walk_loaded_foot_samples > peer::WALK_STEPS,
         "{} loaded-foot samples",
         ours.walk_loaded_foot_samples
     );
+    // Stance feet hold: with friction solved in one solver pass, a tenth of rapier's loaded
+    // foot samples slid at about 0.5 m/s (p90 0.47 m/s against MuJoCo's 0.016).
     let [median, p90] = ours.walk_loaded_foot_speed_m_s;
     let (their_median, their_p90) = (
         theirs.walk_loaded_foot_speed_m_s[0],

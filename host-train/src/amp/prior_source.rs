@@ -106,14 +106,14 @@ pub fn load_prior_source(
         PriorKind::Synthetic => Ok(Some(Box::new(SyntheticTripod::default()))),
         PriorKind::Dataset => {
             let dir = crate::config::resolve_path(&cfg.amp.priors_dir);
-            let friction_in_bias_pass = cfg.resolved_sim().friction_in_bias_pass;
-            let dataset = MotionDataset::load(&dir, cfg.amp.prior_states, friction_in_bias_pass)
-                .map_err(|e| {
-                    PriorSourceError(format!(
-                        "{e} (generate the clips with `hexapod priors`, or set amp.priors_dir)"
-                    ))
-                })?;
             let sim = cfg.resolved_sim();
+            let dataset =
+                MotionDataset::load(&dir, cfg.amp.prior_states, sim.friction_in_bias_pass)
+                    .map_err(|e| {
+                        PriorSourceError(format!(
+                            "{e} (generate the clips with `hexapod priors`, or set amp.priors_dir)"
+                        ))
+                    })?;
             let c = &sim.commands;
             dataset
                 .check_command_coverage(

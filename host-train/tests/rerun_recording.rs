@@ -45,7 +45,7 @@ fn play_writes_a_rerun_recording() {
     run(PlayArgs {
         checkpoint,
         steps: 20,
-        command: vec![0.3, 0.0, 0.0],
+        command: [0.3, 0.0, 0.0],
         out: Some(out.clone()),
         env: None,
         no_replay: true,

@@ -26,6 +26,7 @@ fn the_shipped_policy_walks_in_mujoco() {
         &mut env,
         &mut ppo,
         [0.3, 0.0, 0.0],
+        false,
         100,
         &mut EstimatorError::default(),
         None,

@@ -9,6 +9,7 @@ use crate::algo::ppo::Ppo;
 use crate::checkpoint::load_for_inference;
 use crate::cli::play::PlayEnv;
 use crate::cli::recording::{require_rerun, Recording};
+use crate::cli::style_probe::{self, StyleProbe};
 use crate::cli::terrain_walk::{terrain_walk, TerrainWalkResult};
 use crate::config::EnvKind;
 use anyhow::Context;
@@ -27,6 +28,8 @@ use std::path::PathBuf;
 
 /// A foot is in contact above this force, N (the simulator's stance definition).
 pub const CONTACT_THRESHOLD_N: f32 = host_sim::rewards::STANCE_FORCE_N;
+/// Every this many policy steps a robot's AMP transition is kept for the style probe.
+pub const STYLE_PROBE_EVERY_STEPS: usize = 5;
 /// Steps ignored after each reset before tracking is measured (1 s).
 pub const SETTLE_STEPS: usize = 50;
 /// The fixed commands `(vx m/s, vy m/s, wz rad/s)` evaluated by default.
@@ -92,6 +95,35 @@ pub struct EvalArgs {
     /// (`cargo run --release -p host-train --features rerun --bin hexapod -- eval ...`).
     #[arg(long, conflicts_with = "suite")]
     pub rerun: bool,
+    /// Evaluate these commands instead of the default set, each `VX,VY,WZ` (m/s, m/s,
+    /// rad/s); repeat it for several, e.g. a speed sweep `--command 0.2,0,0 --command
+    /// 0.3,0,0`.
+    #[arg(long, value_parser = parse_command, conflicts_with = "suite", allow_hyphen_values = true)]
+    pub command: Vec<[f32; 3]>,
+    /// Sample the actions from the policy's distribution, as in training, instead of taking
+    /// its mean (the tracking measurement only; the push and terrain tests stay
+    /// deterministic).
+    #[arg(long, conflicts_with = "suite")]
+    pub stochastic: bool,
+}
+
+/// Parses a `VX,VY,WZ` command of `--command` (eval's and play's).
+pub fn parse_command(text: &str) -> Result<[f32; 3], String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let [vx, vy, wz] = parts.as_slice() else {
+        return Err(format!(
+            "`{text}`: a command is three comma-separated numbers VX,VY,WZ (m/s, m/s, rad/s)"
+        ));
+    };
+    let mut command = [0.0f32; 3];
+    for (value, (part, name)) in command.iter_mut().zip([(vx, "VX"), (vy, "VY"), (wz, "WZ")]) {
+        *value = part
+            .parse::<f32>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("`{text}`: {name} `{part}` is not a finite number"))?;
+    }
+    Ok(command)
 }
 
 /// Results at one fixed command.
@@ -122,6 +154,9 @@ pub struct CommandResult {
     /// `mean_velocity` (absent without an estimator): against `mean_velocity`, the
     /// estimator's bias at this command.
     pub mean_estimated_velocity: Option<[f64; 2]>,
+    /// The trained discriminator's verdict on the gait at this command and the speed it
+    /// associates with it ([`crate::cli::style_probe`]; absent without AMP).
+    pub style: Option<StyleProbe>,
 }
 
 /// The push test: robots walk at a fixed command for a full episode and are shoved at a
@@ -359,11 +394,14 @@ impl EstimatorError {
 
 /// Runs every robot of `env` from a reset at `command` for `steps` policy steps with the
 /// deterministic policy and measures tracking, falls, the tripod score and feet down
-/// (after [`SETTLE_STEPS`]); adds the estimator's error to `estimator`.
+/// (after [`SETTLE_STEPS`]); adds the estimator's error to `estimator`. With
+/// `stochastic`, the actions are sampled as in training.
+#[allow(clippy::too_many_arguments)]
 pub fn track_command(
     env: &mut dyn TrackEnv,
     ppo: &mut Ppo,
     command: [f32; 3],
+    stochastic: bool,
     steps: usize,
     estimator: &mut EstimatorError,
     mut recording: Option<(&mut Recording, f32)>,
@@ -379,8 +417,9 @@ pub fn track_command(
     let mut feet_down = [0usize; 7];
     let mut leg_stance = [0usize; NUM_LEGS];
     let (mut mean_estimate, mut estimator_seen) = ([0.0f64; 2], false);
+    let (mut amp_states, mut amp_next_states) = (Vec::new(), Vec::new());
     for step in 0..steps {
-        let act = ppo.act(&obs, true)?;
+        let act = ppo.act(&obs, !stochastic)?;
         if let (Some((rec, t0_s)), Some(sim)) = (recording.as_mut(), env.sim()) {
             let p = &obs.privileged[..PRIVILEGED_DIM];
             let measured = [
@@ -435,6 +474,15 @@ pub fn track_command(
                     estimator.samples += 1;
                 }
             }
+            if step >= SETTLE_STEPS
+                && step.is_multiple_of(STYLE_PROBE_EVERY_STEPS)
+                && !res.dones[i]
+                && !obs.amp.is_empty()
+            {
+                let row = i * AMP_STATE_DIM..(i + 1) * AMP_STATE_DIM;
+                amp_states.extend_from_slice(&obs.amp[row.clone()]);
+                amp_next_states.extend_from_slice(&res.obs.amp[row]);
+            }
             if res.dones[i] && !res.time_outs[i] {
                 fell[i] = true;
             }
@@ -443,7 +491,12 @@ pub fn track_command(
     }
     let s = samples.max(1) as f64;
     let mean_velocity = [mean_v[0] / s, mean_v[1] / s, mean_v[2] / s];
+    let style = match &ppo.disc {
+        Some(disc) => style_probe::probe(disc, command, &amp_states, &amp_next_states)?,
+        None => None,
+    };
     Ok(CommandResult {
+        style,
         command,
         lin_vel_error_m_s: lin_err / s,
         yaw_rate_error_rad_s: yaw_err / s,
@@ -477,7 +530,7 @@ pub fn table_row(r: &CommandResult) -> String {
     format!(
         "{:>22} {:>12.3} {:>12.3} {:>24} {:>9.0}% {:>10.2} {:>10.2}  {}",
         format!(
-            "({:.1},{:.1},{:.1})",
+            "({:.2},{:.2},{:.2})",
             r.command[0], r.command[1], r.command[2]
         ),
         r.lin_vel_error_m_s,
@@ -546,7 +599,12 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let n = args.num_envs;
     let mut results = Vec::new();
     let mut estimator = EstimatorError::default();
-    for (c, command) in EVAL_COMMANDS.into_iter().enumerate() {
+    let commands = if args.command.is_empty() {
+        EVAL_COMMANDS.to_vec()
+    } else {
+        args.command.clone()
+    };
+    for (c, command) in commands.into_iter().enumerate() {
         let t0_s = (c * args.steps) as f32 * POLICY_DT_S;
         if let Some(rec) = &mut recording {
             let [vx, vy, wz] = command;
@@ -560,6 +618,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             &mut env,
             &mut ppo,
             command,
+            args.stochastic,
             args.steps,
             &mut estimator,
             segment,
@@ -593,6 +652,11 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     println!("{}", table_header());
     for r in &report.commands {
         println!("{}", table_row(r));
+    }
+    for r in &report.commands {
+        if let Some(p) = &r.style {
+            println!("{}", style_probe::describe(r.command, p));
+        }
     }
     if let Some(p) = &report.push_test {
         println!(
@@ -633,6 +697,15 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn commands_parse_or_say_what_is_wrong() {
+        assert_eq!(parse_command("0.3,0,-0.5"), Ok([0.3, 0.0, -0.5]));
+        assert_eq!(parse_command(" -0.2, 0.1 ,0"), Ok([-0.2, 0.1, 0.0]));
+        assert!(parse_command("0.3,0").unwrap_err().contains("three"));
+        assert!(parse_command("0.3,x,0").unwrap_err().contains("VY `x`"));
+        assert!(parse_command("0.3,0,nan").unwrap_err().contains("WZ"));
+    }
 
     #[test]
     fn speed_error_is_along_the_command() {

@@ -11,6 +11,7 @@ pub mod replay_gif;
 pub mod rerun_writer;
 pub mod rma_adapt;
 pub mod sim2sim;
+pub mod style_probe;
 pub mod suite;
 pub mod sweep;
 pub mod terrain_mesh;

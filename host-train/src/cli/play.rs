@@ -42,11 +42,11 @@ pub struct PlayArgs {
     /// The command `vx,vy,wz` (m/s, m/s, rad/s), held for the whole run.
     #[arg(
         long,
-        value_delimiter = ',',
+        value_parser = crate::cli::eval::parse_command,
         allow_hyphen_values = true,
         default_value = "0.3,0,0"
     )]
-    pub command: Vec<f32>,
+    pub command: [f32; 3],
     /// Output directory (default `runs/play/<checkpoint name>`).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -199,22 +199,16 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
         ),
         (_, false) => None,
     };
-    let command = match args.command.as_slice() {
-        [vx, vy, wz] => Some([*vx, *vy, *wz]),
-        other => anyhow::bail!("--command takes vx,vy,wz (3 values), got {}", other.len()),
-    };
-    if let Some(c) = command {
-        play_env.env().set_command(0, c);
-    }
+    let command = args.command;
+    play_env.env().set_command(0, command);
     let mut obs = play_env.env().reset();
-    if let Some([vx, vy, wz]) = command {
-        eprintln!(
-            "play {}: command vx {vx} m/s, vy {vy} m/s, wz {wz} rad/s for {:.1} s -> {}",
-            checkpoint.display(),
-            args.steps as f32 * POLICY_DT_S,
-            out.display()
-        );
-    }
+    let [vx, vy, wz] = command;
+    eprintln!(
+        "play {}: command vx {vx} m/s, vy {vy} m/s, wz {wz} rad/s for {:.1} s -> {}",
+        checkpoint.display(),
+        args.steps as f32 * POLICY_DT_S,
+        out.display()
+    );
     let mut csv = String::from(
         "t_s,cmd_vx,cmd_vy,cmd_wz,vx_m_s,vy_m_s,wz_rad_s,est_vx_m_s,est_vy_m_s,base_height_m,done",
     );
@@ -380,7 +374,8 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
             ""
         }
     );
-    if let (Some(c), true) = (command, summary.samples > 0) {
+    if summary.samples > 0 {
+        let c = command;
         let n = summary.samples as f64;
         let mean = summary.sum_v.map(|x| x / n);
         println!(

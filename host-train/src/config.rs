@@ -647,6 +647,12 @@ mod tests {
         );
         assert_eq!(get("paper").env.num_envs, 4096);
         assert_eq!(get("paper").amp.discriminator_hidden, vec![1024, 512]);
+        // The flat recipe's second stage differs from its first in the tracking kernel only.
+        use host_sim::rewards::TrackingKernel;
+        let (first, second) = (get("flat-tripod"), get("flat-tripod-track"));
+        assert_eq!(first.sim.rewards.tracking_kernel, TrackingKernel::Squared);
+        assert_eq!(second.sim.rewards.tracking_kernel, TrackingKernel::Norm);
+        assert_eq!(second.runner.max_iterations, first.runner.max_iterations + 1000);
     }
 
     #[test]

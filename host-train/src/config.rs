@@ -652,7 +652,10 @@ mod tests {
         let (first, second) = (get("flat-tripod"), get("flat-tripod-track"));
         assert_eq!(first.sim.rewards.tracking_kernel, TrackingKernel::Squared);
         assert_eq!(second.sim.rewards.tracking_kernel, TrackingKernel::Norm);
-        assert_eq!(second.runner.max_iterations, first.runner.max_iterations + 1000);
+        assert_eq!(
+            second.runner.max_iterations,
+            first.runner.max_iterations + 1000
+        );
     }
 
     #[test]

@@ -19,7 +19,7 @@ pub mod sim;
 pub mod size;
 
 /// The checkpoint `firmware/policy` is generated from: the shipped flat-ground tripod policy.
-pub const SHIPPED_CHECKPOINT: &str = "assets/policies/flat-tripod";
+pub const SHIPPED_CHECKPOINT: &str = "assets/policies/flat-amp-track";
 
 /// Observations used for calibration (synthetic, seed 1).
 pub const CALIBRATION_COUNT: usize = 2000;

@@ -375,7 +375,6 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
         }
     );
     if summary.samples > 0 {
-        let c = command;
         let n = summary.samples as f64;
         let mean = summary.sum_v.map(|x| x / n);
         println!(
@@ -384,9 +383,9 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
             mean[0],
             mean[1],
             mean[2],
-            c[0],
-            c[1],
-            c[2],
+            command[0],
+            command[1],
+            command[2],
             summary.tripod as f64 / n,
             summary.falls
         );

@@ -7,7 +7,7 @@
 //! term pays for walking faster than the robot does with these strides, a peak at zero
 //! that the style term does not pull the speed either way.
 
-use crate::amp::discriminator::{style_reward_of, Discriminator};
+use crate::amp::discriminator::Discriminator;
 use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_BASE_LIN_VEL, AMP_STATE_DIM};
 use serde::Serialize;
 
@@ -85,9 +85,8 @@ pub fn probe(
             }
             out
         };
-        let (_, d_shifted) = disc.style_reward(&shifted(states), &shifted(next_states))?;
-        let r: Vec<f32> = d_shifted.iter().map(|&d| style_reward_of(d)).collect();
-        style_reward_by_offset.push(mean(&r));
+        let (rewards_shifted, _) = disc.style_reward(&shifted(states), &shifted(next_states))?;
+        style_reward_by_offset.push(mean(&rewards_shifted));
     }
     let recorded = mean(&rewards);
     let best = style_reward_by_offset

@@ -6,7 +6,7 @@ one period of gait joint targets at the physics rate, drive gains and limits, an
 heightfield) and prints one JSON object: physics steps/s on flat ground and on the
 heightfield, mean contact counts, and the fidelity figures (standing base height and joint
 torques with noslip on; base displacement and the loaded feet's sliding speed under the
-scripted gait).
+scripted gait, and the yaw turned by a turning gait in place).
 """
 import json
 import sys
@@ -103,6 +103,12 @@ def loaded_feet(model, data, feet):
     return normal_n > 20.0
 
 
+def heading_rad(quat_wxyz):
+    """Yaw about the world's vertical of a base orientation (MuJoCo's w, x, y, z order)."""
+    w, x, y, z = quat_wxyz
+    return float(np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
+
+
 def timed_walk(model, data, qadr, vadr, job, steps):
     targets = np.array(job["gait_targets_rad"])
     q0 = np.array(job["q0_rad"])
@@ -150,6 +156,18 @@ def main():
     out["walk_displacement_m"] = [float(v) for v in data.qpos[0:2] - x0]
     out["walk_loaded_foot_speed_m_s"] = [float(np.median(slide_m_s)), float(np.percentile(slide_m_s, 90))]
     out["walk_height_m"] = float(data.qpos[2])
+    # Fidelity of a turn: stand again, then the turning gait in place; the yaw turned.
+    reset(model, data, qadr, job, job["spawn_height_m"])
+    for _ in range(job["stand_steps"]):
+        step(model, data, qadr, vadr, job, q0)
+    turn_targets = np.array(job["turn_targets_rad"])
+    last, turned = heading_rad(data.qpos[3:7]), 0.0
+    for k in range(job["walk_steps"]):
+        step(model, data, qadr, vadr, job, turn_targets[k % len(turn_targets)])
+        h = heading_rad(data.qpos[3:7])
+        turned += (h - last + np.pi) % (2.0 * np.pi) - np.pi
+        last = h
+    out["turn_yaw_rad"] = float(turned)
     # Fidelity on the heightfield: the same stand and walk from the tile's centre.
     if "hfield" in job:
         model, data, qadr, vadr = build(job, True)

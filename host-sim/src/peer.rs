@@ -38,6 +38,8 @@ pub struct PeerReport {
     /// Horizontal speed of feet loaded above [`LOADED_FOOT_N`] over that walk, median and
     /// 90th percentile over (foot, step) samples, m/s.
     pub walk_loaded_foot_speed_m_s: Vec<f32>,
+    /// Base yaw turned (unwrapped) over 10 s of [`turning_gait`] after standing 10 s, rad.
+    pub turn_yaw_rad: f32,
     /// Base displacement (x, y) after 10 s of the scripted gait on the heightfield (after
     /// standing 10 s at the tile's centre), m.
     pub terrain_walk_displacement_m: Option<Vec<f32>>,
@@ -69,6 +71,8 @@ pub struct FidelityReport {
     pub walk_loaded_foot_speed_m_s: [f32; 2],
     /// The (foot, step) samples those figures come from.
     pub walk_loaded_foot_samples: usize,
+    /// Base yaw turned (unwrapped) over 10 s of [`turning_gait`] after standing 10 s, rad.
+    pub turn_yaw_rad: f32,
 }
 
 /// The scripted gait on the heightfield, measured in rapier like the peer's.
@@ -85,6 +89,27 @@ pub struct HeightfieldWalk {
 /// The gait both simulators walk.
 pub fn reference_gait() -> TripodGait {
     TripodGait::default()
+}
+
+/// The turn both simulators walk: the reference gait's stride turned about the base's
+/// vertical axis in place.
+pub fn turning_gait() -> TripodGait {
+    TripodGait {
+        velocity_m_s: [0.0, 0.0],
+        yaw_rate_rad_s: TURN_YAW_RATE_RAD_S,
+        ..TripodGait::default()
+    }
+}
+
+/// Yaw rate the turning gait's strides are planned for, rad/s.
+pub const TURN_YAW_RATE_RAD_S: f32 = 0.4;
+
+/// One period of `gait`'s joint targets at the physics rate.
+fn period_targets(gait: &TripodGait) -> Vec<Vec<f32>> {
+    let period_steps = (gait.period_s / PHYSICS_DT_S).round() as usize;
+    (0..period_steps)
+        .map(|k| gait.joint_targets(k as f32 * PHYSICS_DT_S).to_vec())
+        .collect()
 }
 
 /// The rough heightfield both simulators are timed on: one 24 m tile of +-3 cm noise
@@ -135,13 +160,57 @@ pub fn rapier_fidelity() -> anyhow::Result<FidelityReport> {
     }
     let e = robot.state().base_pos_world_m;
     slide_m_s.sort_by(f32::total_cmp);
+    robot.reset([0.0, 0.0, SPAWN_HEIGHT_M], [0.0, 0.0, 0.0, 1.0], &Q0_RAD);
+    for _ in 0..STAND_STEPS {
+        robot.step(&Q0_RAD);
+    }
+    let turn = turning_gait();
+    let mut yaw_rad = UnwrappedYaw::new(heading_rad(robot.state().base_quat_xyzw));
+    for k in 0..WALK_STEPS {
+        robot.step(&turn.joint_targets(k as f32 * PHYSICS_DT_S));
+        yaw_rad.update(heading_rad(robot.state().base_quat_xyzw));
+    }
     Ok(FidelityReport {
         stand_height_m,
         stand_torque_nm,
         walk_displacement_m: [e[0] - s.base_pos_world_m[0], e[1] - s.base_pos_world_m[1]],
         walk_loaded_foot_samples: slide_m_s.len(),
         walk_loaded_foot_speed_m_s: [quantile(&slide_m_s, 0.5), quantile(&slide_m_s, 0.9)],
+        turn_yaw_rad: yaw_rad.turned_rad(),
     })
+}
+
+/// Heading (yaw about the world's vertical) of a base orientation `[x, y, z, w]`, rad.
+fn heading_rad(q: [f32; 4]) -> f32 {
+    let [x, y, z, w] = q;
+    (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z))
+}
+
+/// A heading followed through its wraps at +-pi, step by step.
+struct UnwrappedYaw {
+    last_rad: f32,
+    turned_rad: f32,
+}
+
+impl UnwrappedYaw {
+    fn new(heading_rad: f32) -> Self {
+        Self {
+            last_rad: heading_rad,
+            turned_rad: 0.0,
+        }
+    }
+
+    fn update(&mut self, heading_rad: f32) {
+        let d = heading_rad - self.last_rad;
+        self.turned_rad +=
+            (d + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU) - std::f32::consts::PI;
+        self.last_rad = heading_rad;
+    }
+
+    /// Yaw turned since the first heading.
+    fn turned_rad(&self) -> f32 {
+        self.turned_rad
+    }
 }
 
 /// The `q` quantile (nearest rank below) of ascending `sorted`; 0 for none.
@@ -168,11 +237,8 @@ pub fn mujoco_available() -> bool {
 
 /// Runs MuJoCo on the same job; `speed_steps` > 0 also times flat and heightfield stepping.
 pub fn run_mujoco(speed_steps: usize, settle_steps: usize) -> anyhow::Result<PeerReport> {
-    let gait = reference_gait();
-    let period_steps = (gait.period_s / PHYSICS_DT_S).round() as usize;
-    let targets: Vec<Vec<f32>> = (0..period_steps)
-        .map(|k| gait.joint_targets(k as f32 * PHYSICS_DT_S).to_vec())
-        .collect();
+    let targets = period_targets(&reference_gait());
+    let turn_targets = period_targets(&turning_gait());
     let model = UrdfModel::load(&default_urdf_path())?;
     let terrain = bench_terrain();
     // MuJoCo's heightfield rows run along y, columns along x.
@@ -191,6 +257,7 @@ pub fn run_mujoco(speed_steps: usize, settle_steps: usize) -> anyhow::Result<Pee
         "joint_names": JOINT_NAMES,
         "q0_rad": Q0_RAD,
         "gait_targets_rad": targets,
+        "turn_targets_rad": turn_targets,
         "kp1_per_s": CSP_KP1_PER_S,
         "kp2_nms_per_rad": CSP_KP2_NMS_PER_RAD,
         "velocity_limit_rad_s": VELOCITY_LIMIT_RAD_S,

@@ -1,6 +1,6 @@
 //! Fidelity against MuJoCo on the same URDF, dt and drive law: standing base height within
 //! 1 cm, standing joint torques within 10 %, base displacement under the scripted tripod gait
-//! within 20 %, loaded feet sliding (90th percentile of their speed) within 0.03 m/s of
+//! within 20 %, the yaw turned by a turning gait in place within 20 %, loaded feet sliding (90th percentile of their speed) within 0.03 m/s of
 //! MuJoCo's. Needs `python3` with `mujoco` (installed by `.ci/run`); on CI a missing peer
 //! fails the test, elsewhere it is skipped with a message.
 
@@ -91,6 +91,21 @@ fn rapier_agrees_with_mujoco() {
     assert!(
         p90 < their_p90 + 0.03,
         "loaded feet slide: p90 {p90} m/s, MuJoCo {their_p90} m/s"
+    );
+    // Turning in place: the yaw turned over the same 10 s within the displacement's 20 %.
+    let planned_rad =
+        peer::TURN_YAW_RATE_RAD_S * peer::WALK_STEPS as f32 * hexapod_core::timing::PHYSICS_DT_S;
+    eprintln!(
+        "turn: {:.3} vs {:.3} rad in 10 s ({:.1} %; strides planned for {planned_rad:.1} rad)",
+        ours.turn_yaw_rad,
+        theirs.turn_yaw_rad,
+        100.0 * (ours.turn_yaw_rad - theirs.turn_yaw_rad).abs() / theirs.turn_yaw_rad.abs()
+    );
+    assert!(
+        (ours.turn_yaw_rad - theirs.turn_yaw_rad).abs() / theirs.turn_yaw_rad.abs() < 0.20,
+        "turn: rapier {} rad vs MuJoCo {} rad",
+        ours.turn_yaw_rad,
+        theirs.turn_yaw_rad
     );
 }
 

@@ -656,6 +656,15 @@ mod tests {
             second.runner.max_iterations,
             first.runner.max_iterations + 1000
         );
+        // So does the terrain recipe's, which also runs on the shipped simulator.
+        let (first, second) = (get("ablation-gsl"), get("terrain-track"));
+        assert_eq!(first.sim.rewards.tracking_kernel, TrackingKernel::Squared);
+        assert_eq!(second.sim.rewards.tracking_kernel, TrackingKernel::Norm);
+        assert_eq!(
+            format!("{:?}", first.sim.terrain),
+            format!("{:?}", second.sim.terrain)
+        );
+        assert!(second.sim.friction_in_bias_pass && !first.sim.friction_in_bias_pass);
     }
 
     #[test]

@@ -463,7 +463,8 @@ pub fn spawn_height_m(
 }
 
 /// The termination rule: the trunk touches the ground, the base tilts more than
-/// `max_tilt_deg` from upright, or the state is not finite.
+/// `max_tilt_deg` from upright, or the state is not physical: not finite, or the base moving
+/// faster than [`BLOWN_UP_SPEED_M_S`] (a solve that blew up; no push or fall comes near it).
 pub fn terminated(s: &RobotState, trunk_contact: bool, max_tilt_deg: f32) -> bool {
     let gravity = rotate_inverse(s.base_quat_xyzw, [0.0, 0.0, -1.0]);
     let finite = s
@@ -471,9 +472,24 @@ pub fn terminated(s: &RobotState, trunk_contact: bool, max_tilt_deg: f32) -> boo
         .iter()
         .chain(s.q_rad.iter())
         .chain(s.qdot_rad_s.iter())
+        .chain(s.base_lin_vel_world_m_s.iter())
+        .chain(s.base_ang_vel_world_rad_s.iter())
         .all(|x| x.is_finite());
-    trunk_contact || gravity[2] > -max_tilt_deg.to_radians().cos() || !finite
+    let speed_m_s = s
+        .base_lin_vel_world_m_s
+        .iter()
+        .map(|v| v * v)
+        .sum::<f32>()
+        .sqrt();
+    trunk_contact
+        || gravity[2] > -max_tilt_deg.to_radians().cos()
+        || !finite
+        || speed_m_s > BLOWN_UP_SPEED_M_S
 }
+
+/// Base speed beyond which a robot's state counts as a blown-up solve, m/s: the paper
+/// suite's strongest push is 6 m/s, a fall from standing height reaches about 2.5 m/s.
+pub const BLOWN_UP_SPEED_M_S: f32 = 20.0;
 
 fn uniform(rng: &mut ChaCha8Rng, [lo, hi]: [f32; 2]) -> f32 {
     if hi > lo {

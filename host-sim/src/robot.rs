@@ -221,6 +221,12 @@ fn physics_world(solver_iterations: usize) -> PhysicsWorld {
     world.integration_parameters.normalized_prediction_distance = 0.01;
     // Friction in both passes of each substep (`RobotWorld::set_friction_in_bias_pass`).
     world.integration_parameters.friction_in_bias_pass = true;
+    // No continuous collision detection. rapier sweeps every body that moves more than half
+    // its thinnest extent in a step against the fixed colliders; for a robot whose solve
+    // blew up that sweep covers the whole terrain heightfield, millions of triangles per
+    // step (a training stalled in it for minutes). The feet move millimetres per 5 ms step
+    // and the speculative margin above finds their contacts; MuJoCo has no CCD either.
+    world.integration_parameters.max_ccd_substeps = 0;
     world
 }
 

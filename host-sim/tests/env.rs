@@ -407,3 +407,30 @@ fn the_curriculum_tiles_round_trip_and_flat_ground_has_none() {
         None
     );
 }
+
+#[test]
+fn a_blown_up_state_terminates_and_a_hard_push_does_not() {
+    use host_sim::env::{terminated, BLOWN_UP_SPEED_M_S};
+    use host_sim::robot::RobotState;
+    let upright = RobotState {
+        base_pos_world_m: [0.0, 0.0, 0.3],
+        base_quat_xyzw: [0.0, 0.0, 0.0, 1.0],
+        ..Default::default()
+    };
+    assert!(!terminated(&upright, false, 60.0));
+    let pushed = RobotState {
+        base_lin_vel_world_m_s: [6.0, 0.0, 0.0],
+        ..upright
+    };
+    assert!(!terminated(&pushed, false, 60.0));
+    let blown_up = RobotState {
+        base_lin_vel_world_m_s: [0.0, 0.0, 1.5 * BLOWN_UP_SPEED_M_S],
+        ..upright
+    };
+    assert!(terminated(&blown_up, false, 60.0));
+    let spinning_nan = RobotState {
+        base_ang_vel_world_rad_s: [0.0, f32::NAN, 0.0],
+        ..upright
+    };
+    assert!(terminated(&spinning_nan, false, 60.0));
+}

@@ -2,6 +2,7 @@
 //! `bench/mujoco_peer.py`, and the same measurements taken here in rapier, so speed and
 //! fidelity are compared side by side in one run.
 
+use crate::frames::yaw_rad;
 use crate::gait::TripodGait;
 use crate::robot::RobotWorld;
 use crate::terrain::{Terrain, TerrainConfig, TileKind};
@@ -12,6 +13,7 @@ use hexapod_core::robot::{
 };
 use hexapod_core::timing::{CSP_KP1_PER_S, CSP_KP2_NMS_PER_RAD, PHYSICS_DT_S};
 use serde::Deserialize;
+use std::f32::consts::{PI, TAU};
 use std::path::{Path, PathBuf};
 
 /// Physics steps standing before measuring (10 s).
@@ -135,10 +137,7 @@ pub fn rapier_fidelity() -> anyhow::Result<FidelityReport> {
         Terrain::generate(&TerrainConfig::default()).collider(),
         1,
     )?;
-    robot.reset([0.0, 0.0, SPAWN_HEIGHT_M], [0.0, 0.0, 0.0, 1.0], &Q0_RAD);
-    for _ in 0..STAND_STEPS {
-        robot.step(&Q0_RAD);
-    }
+    stand(&mut robot);
     let s = robot.state();
     let stand_height_m = s.base_pos_world_m[2];
     let stand_torque_nm = robot.torque_nm;
@@ -160,15 +159,16 @@ pub fn rapier_fidelity() -> anyhow::Result<FidelityReport> {
     }
     let e = robot.state().base_pos_world_m;
     slide_m_s.sort_by(f32::total_cmp);
-    robot.reset([0.0, 0.0, SPAWN_HEIGHT_M], [0.0, 0.0, 0.0, 1.0], &Q0_RAD);
-    for _ in 0..STAND_STEPS {
-        robot.step(&Q0_RAD);
-    }
+    stand(&mut robot);
     let turn = turning_gait();
-    let mut yaw_rad = UnwrappedYaw::new(heading_rad(robot.state().base_quat_xyzw));
+    let mut heading_rad = yaw_rad(robot.state().base_quat_xyzw);
+    let mut turn_yaw_rad = 0.0;
     for k in 0..WALK_STEPS {
         robot.step(&turn.joint_targets(k as f32 * PHYSICS_DT_S));
-        yaw_rad.update(heading_rad(robot.state().base_quat_xyzw));
+        let h = yaw_rad(robot.state().base_quat_xyzw);
+        // The heading's change in (-pi, pi]: it wraps at +-pi as the robot turns round.
+        turn_yaw_rad += (h - heading_rad + PI).rem_euclid(TAU) - PI;
+        heading_rad = h;
     }
     Ok(FidelityReport {
         stand_height_m,
@@ -176,40 +176,15 @@ pub fn rapier_fidelity() -> anyhow::Result<FidelityReport> {
         walk_displacement_m: [e[0] - s.base_pos_world_m[0], e[1] - s.base_pos_world_m[1]],
         walk_loaded_foot_samples: slide_m_s.len(),
         walk_loaded_foot_speed_m_s: [quantile(&slide_m_s, 0.5), quantile(&slide_m_s, 0.9)],
-        turn_yaw_rad: yaw_rad.turned_rad(),
+        turn_yaw_rad,
     })
 }
 
-/// Heading (yaw about the world's vertical) of a base orientation `[x, y, z, w]`, rad.
-fn heading_rad(q: [f32; 4]) -> f32 {
-    let [x, y, z, w] = q;
-    (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z))
-}
-
-/// A heading followed through its wraps at +-pi, step by step.
-struct UnwrappedYaw {
-    last_rad: f32,
-    turned_rad: f32,
-}
-
-impl UnwrappedYaw {
-    fn new(heading_rad: f32) -> Self {
-        Self {
-            last_rad: heading_rad,
-            turned_rad: 0.0,
-        }
-    }
-
-    fn update(&mut self, heading_rad: f32) {
-        let d = heading_rad - self.last_rad;
-        self.turned_rad +=
-            (d + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU) - std::f32::consts::PI;
-        self.last_rad = heading_rad;
-    }
-
-    /// Yaw turned since the first heading.
-    fn turned_rad(&self) -> f32 {
-        self.turned_rad
+/// Spawns the robot at the origin and lets it stand [`STAND_STEPS`] at the nominal pose.
+fn stand(robot: &mut RobotWorld) {
+    robot.reset([0.0, 0.0, SPAWN_HEIGHT_M], [0.0, 0.0, 0.0, 1.0], &Q0_RAD);
+    for _ in 0..STAND_STEPS {
+        robot.step(&Q0_RAD);
     }
 }
 

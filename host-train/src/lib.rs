@@ -7,6 +7,7 @@ pub mod amp;
 pub mod checkpoint;
 pub mod cli;
 pub mod config;
+pub mod curriculum_carry;
 pub mod env;
 pub mod error;
 pub mod metrics;

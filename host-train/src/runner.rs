@@ -6,6 +6,7 @@ use crate::algo::storage::{RolloutStorage, Transition};
 use crate::amp::prior_source::{MotionPriorSource, PriorSourceError};
 use crate::checkpoint;
 use crate::config::TrainConfig;
+use crate::curriculum_carry::carry_tiles;
 use crate::error::TrainError;
 use crate::metrics::MetricsLog;
 use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_GROUPS, AMP_STATE_DIM};
@@ -145,22 +146,30 @@ impl Runner {
     }
 
     /// Puts the robots back on the terrain tiles a checkpoint recorded, and resets them
-    /// there. Without tiles in the checkpoint (older checkpoints, flat ground) or with another
-    /// number of robots, the robots stay on their initial rows, and the latter is said.
+    /// there. Without tiles in the checkpoint (older checkpoints, flat ground) the robots
+    /// stay on their initial rows. A checkpoint of another tile layout or number of robots
+    /// carries its rows per tile kind ([`crate::curriculum_carry`]), and that is said.
     fn restore_curriculum(&mut self, dir: &Path, tiles: Option<&[[usize; 2]]>) {
         let (Some(tiles), Some(now)) = (tiles, self.env.terrain_tiles()) else {
             return;
         };
-        if tiles.len() != now.len() {
+        let columns = &self.ppo.cfg.sim.terrain.columns;
+        let saved_columns = match checkpoint::load_config(dir) {
+            Ok(cfg) => cfg.sim.terrain.columns,
+            Err(_) => columns.clone(),
+        };
+        if tiles.len() != now.len() || &saved_columns != columns {
             eprintln!(
-                "{}: the curriculum of {} robots does not fit this run's {}; the robots start on their initial rows",
+                "{}: the curriculum of {} robots on {:?} carries over per tile kind to this run's {} robots on {:?}",
                 dir.display(),
                 tiles.len(),
-                now.len()
+                saved_columns,
+                now.len(),
+                columns
             );
-            return;
         }
-        self.env.set_terrain_tiles(tiles);
+        let carried = carry_tiles(tiles, &saved_columns, &now, columns);
+        self.env.set_terrain_tiles(&carried);
         self.obs = self.env.reset();
     }
 

@@ -259,14 +259,21 @@ fn a_resumed_run_goes_on_from_the_curriculum_its_checkpoint_recorded() {
         resets_before + 1
     );
 
-    // Another number of robots keeps its initial rows; so does a checkpoint without tiles.
+    // Another number of robots takes the rows per tile kind: robot i stands on column i % 6
+    // and takes the first row the checkpoint's robots reached on that column's kind (none
+    // of them stood on column 3: that robot keeps its initial row).
     let mut cfg4 = cfg.clone();
     cfg4.env.num_envs = 4;
+    assert_eq!(cfg4.sim.terrain.columns.len(), 6);
     let other = TiledEnv::new(4);
     let tiles4 = other.tiles.clone();
     let mut four = Runner::new(&cfg4, Box::new(other), priors(), &run_dir("curriculum-c")).unwrap();
     four.resume(&ckpt).unwrap();
-    assert_eq!(*tiles4.lock().unwrap(), vec![[0, 0]; 4]);
+    assert_eq!(
+        *tiles4.lock().unwrap(),
+        vec![[0, 0], [1, 1], [2, 2], [0, 3]]
+    );
+    // So does a checkpoint without tiles keep the initial rows.
     std::fs::write(ckpt.join(checkpoint::STATE_FILE), "{\"iteration\": 1}").unwrap();
     let old = TiledEnv::new(8);
     let tiles_old = old.tiles.clone();

@@ -1,8 +1,9 @@
 //! Fidelity against MuJoCo on the same URDF, dt and drive law: standing base height within
 //! 1 cm, standing joint torques within 10 %, base displacement under the scripted tripod gait
 //! within 20 %, the yaw turned by a turning gait in place within 20 %, loaded feet sliding
-//! (90th percentile of their speed) within 0.03 m/s of MuJoCo's. Needs `python3` with `mujoco` (installed by `.ci/run`); on CI a missing peer
-//! fails the test, elsewhere it is skipped with a message.
+//! (90th percentile of their speed) within 0.03 m/s of MuJoCo's. Needs `python3` with
+//! `mujoco` (installed by `.ci/run`); on CI a missing peer fails the test, elsewhere it is
+//! skipped with a message.
 
 use host_sim::peer::{
     self, mujoco_available, rapier_fidelity, rapier_heightfield_walk, run_mujoco,

@@ -23,30 +23,33 @@ pub fn carry_tiles(
     if saved.len() == initial.len() && saved_columns == columns {
         return saved.to_vec();
     }
-    let rows_of = |kind: TileKind| -> Vec<usize> {
-        saved
-            .iter()
-            .filter(|[_, c]| saved_columns.get(*c) == Some(&kind))
-            .map(|[row, _]| *row)
-            .collect()
-    };
+    // The rows reached on each kind, in robot order, gathered once per column of the new layout.
+    let rows_by_column: Vec<Vec<usize>> = columns
+        .iter()
+        .map(|kind| {
+            saved
+                .iter()
+                .filter(|[_, c]| saved_columns.get(*c) == Some(kind))
+                .map(|[row, _]| *row)
+                .collect()
+        })
+        .collect();
     let mut taken = vec![0usize; columns.len()];
     initial
         .iter()
         .enumerate()
         .map(|(i, [initial_row, _])| {
             let column = i % columns.len().max(1);
-            let Some(&kind) = columns.get(column) else {
+            let (Some(kind), Some(rows)) = (columns.get(column), rows_by_column.get(column)) else {
                 return [*initial_row, column];
             };
-            let rows = rows_of(kind);
             if rows.is_empty() {
                 return [*initial_row, column];
             }
             // Kinds repeated in the new layout draw from the same rows, each column in turn.
-            let same_kind_before = columns[..column].iter().filter(|k| **k == kind).count();
-            let n =
-                taken[column] * columns.iter().filter(|k| **k == kind).count() + same_kind_before;
+            let same_kind_before = columns[..column].iter().filter(|k| *k == kind).count();
+            let same_kind = columns.iter().filter(|k| *k == kind).count();
+            let n = taken[column] * same_kind + same_kind_before;
             taken[column] += 1;
             [rows[n % rows.len()], column]
         })

@@ -156,7 +156,10 @@ impl Runner {
         let columns = &self.ppo.cfg.sim.terrain.columns;
         let saved_columns = match checkpoint::load_config(dir) {
             Ok(cfg) => cfg.sim.terrain.columns,
-            Err(_) => columns.clone(),
+            Err(e) => {
+                eprintln!("{e}; the curriculum is read as on this run's tile layout");
+                columns.clone()
+            }
         };
         if tiles.len() != now.len() || &saved_columns != columns {
             eprintln!(

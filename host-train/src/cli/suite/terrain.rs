@@ -93,7 +93,68 @@ pub fn features(quick: bool) -> Vec<Feature> {
     f
 }
 
-/// Runs the terrain features (`terrain`) and the outdoor step (`step`) in one batch.
+/// A lane robots walk in: its place in the [`course`], its feature and its command.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lane {
+    /// Index of the lane in the course.
+    pub course_lane: usize,
+    /// The lane's feature.
+    pub feature: Feature,
+    /// Command (vx, vy, wz).
+    pub command: [f32; 3],
+}
+
+/// Every lane of the course, in course order: the terrain features, then the outdoor step.
+fn all_lanes(quick: bool) -> Vec<Lane> {
+    let mut lanes: Vec<(Feature, [f32; 3])> = features(quick)
+        .into_iter()
+        .map(|f| (f, TERRAIN_COMMAND))
+        .collect();
+    lanes.push((
+        Feature::Step {
+            height_m: OUTDOOR_STEP_M,
+        },
+        OUTDOOR_COMMAND,
+    ));
+    lanes
+        .into_iter()
+        .enumerate()
+        .map(|(course_lane, (feature, command))| Lane {
+            course_lane,
+            feature,
+            command,
+        })
+        .collect()
+}
+
+/// The course of both tests: a lane per terrain feature and one for the outdoor step,
+/// whichever of the two run. The ground is one heightfield whose size and placement follow
+/// from its lanes, and contacts on a heightfield of another size round differently: a course
+/// of the selected lanes only gave trial k another ground, at the bit level, when the terrain
+/// test ran alone than beside the step, and different outcomes on marginal stairs.
+pub fn course(quick: bool) -> Course {
+    let features: Vec<Feature> = all_lanes(quick).iter().map(|l| l.feature).collect();
+    Course::new(&features)
+}
+
+/// The lanes of the selected tests (`terrain`, `step`), in report order (the step last).
+pub fn selected_lanes(quick: bool, terrain: bool, step: bool) -> Vec<Lane> {
+    let lanes = all_lanes(quick);
+    let step_lane = lanes.len() - 1;
+    lanes
+        .into_iter()
+        .filter(|l| {
+            if l.course_lane == step_lane {
+                step
+            } else {
+                terrain
+            }
+        })
+        .collect()
+}
+
+/// Runs the terrain features (`terrain`) and the outdoor step (`step`) in one batch, on the
+/// same [`course`] either way.
 pub fn run(
     cfg: &TrainConfig,
     controller: &mut dyn SuiteController,
@@ -101,26 +162,16 @@ pub fn run(
     terrain: bool,
     step: bool,
 ) -> anyhow::Result<TerrainResult> {
-    let mut lanes: Vec<(Feature, [f32; 3])> = Vec::new();
-    if terrain {
-        lanes.extend(features(c.quick).into_iter().map(|f| (f, TERRAIN_COMMAND)));
-    }
-    if step {
-        lanes.push((
-            Feature::Step {
-                height_m: OUTDOOR_STEP_M,
-            },
-            OUTDOOR_COMMAND,
-        ));
-    }
-    let course = Course::new(&lanes.iter().map(|l| l.0).collect::<Vec<_>>());
+    let course = course(c.quick);
+    let lanes = selected_lanes(c.quick, terrain, step);
     let n = c.robots(lanes.len());
     let mut env =
         HexapodEnv::with_terrain(c.sim_config(cfg, n, DURATION_S), course.terrain().clone())?;
     seed_trials(&mut env, c);
     let lane_of = |i: usize| i / c.trials;
+    let start_of = |i: usize| course.start_pose(lanes[lane_of(i)].course_lane);
     for i in 0..n {
-        env.set_spawn_pose(i, Some(course.start_pose(lane_of(i))));
+        env.set_spawn_pose(i, Some(start_of(i)));
     }
     let mut fell = vec![false; n];
     let mut distance_m = vec![0.0f32; n];
@@ -130,7 +181,7 @@ pub fn run(
         steps(DURATION_S),
         |_, _, commands| {
             for (i, cmd) in commands.iter_mut().enumerate() {
-                *cmd = lanes[lane_of(i)].1;
+                *cmd = lanes[lane_of(i)].command;
             }
         },
         |_, env, res| {
@@ -143,7 +194,7 @@ pub fn run(
                     continue;
                 }
                 // Heading +x: the distance along the command is the x advance.
-                let start = course.start_pose(lane_of(i)).position_m;
+                let start = start_of(i).position_m;
                 distance_m[i] = env.robot_state(i).base_pos_world_m[0] - start[0];
             }
         },
@@ -151,16 +202,16 @@ pub fn run(
     let mut results: Vec<FeatureResult> = lanes
         .iter()
         .enumerate()
-        .map(|(lane, (feature, command))| {
+        .map(|(lane, l)| {
             let robots: Vec<usize> = (0..n).filter(|&i| lane_of(i) == lane).collect();
             let successes = robots
                 .iter()
                 .filter(|&&i| !fell[i] && distance_m[i] >= SUCCESS_DISTANCE_M)
                 .count();
             FeatureResult {
-                feature: *feature,
-                name: feature.describe(),
-                command: *command,
+                feature: l.feature,
+                name: l.feature.describe(),
+                command: l.command,
                 trials: robots.len(),
                 successes,
                 falls: robots.iter().filter(|&&i| fell[i]).count(),
@@ -177,4 +228,32 @@ pub fn run(
         features: results,
         outdoor_step,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Trial k meets the same ground whether the terrain test runs alone, beside the step, or
+    /// the step alone: one course for all, and each test's lanes keep their place in it.
+    #[test]
+    fn the_ground_does_not_depend_on_the_tests_selected() {
+        for quick in [false, true] {
+            let both = selected_lanes(quick, true, true);
+            let terrain = selected_lanes(quick, true, false);
+            let step = selected_lanes(quick, false, true);
+            assert_eq!(terrain.len(), features(quick).len());
+            assert_eq!(step.len(), 1);
+            assert_eq!(terrain[..], both[..terrain.len()]);
+            assert_eq!(step[..], both[terrain.len()..]);
+            let course = course(quick);
+            assert_eq!(course.features().len(), both.len());
+            for l in &both {
+                assert_eq!(course.features()[l.course_lane], l.feature);
+            }
+            assert_eq!(step[0].course_lane, terrain.len());
+            assert_eq!(step[0].command, OUTDOOR_COMMAND);
+            assert!(selected_lanes(quick, false, false).is_empty());
+        }
+    }
 }

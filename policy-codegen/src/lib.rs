@@ -18,8 +18,9 @@ pub mod records;
 pub mod sim;
 pub mod size;
 
-/// The checkpoint `firmware/policy` is generated from: the shipped flat-ground tripod policy.
-pub const SHIPPED_CHECKPOINT: &str = "assets/policies/flat-amp-track";
+/// The checkpoint `firmware/policy` is generated from: the shipped terrain policy (the paper's
+/// recipe on the tile curriculum, stairs and slopes; `assets/policies/terrain-reach/README.md`).
+pub const SHIPPED_CHECKPOINT: &str = "assets/policies/terrain-reach";
 
 /// Observations used for calibration (synthetic, seed 1).
 pub const CALIBRATION_COUNT: usize = 2000;

@@ -33,6 +33,26 @@ fn walking_down_the_course_stairs_lowers_the_ground_under_the_robot() {
 }
 
 #[test]
+fn climbing_the_course_stairs_raises_the_ground_under_the_robot() {
+    let s = scenario("stairs_up_13cm_generated_policy.toml");
+    let sil = s.run().unwrap_or_else(|e| panic!("{e}"));
+    let p = sil.plant();
+    let [x, y, z] = p.state().base_pos_world_m;
+    let ground_rise_m =
+        p.ground.height_at_m(x, y) - p.ground.height_at_m(p.start_pos_m[0], p.start_pos_m[1]);
+    // 2 m along the course is 1 m past the first edge: at least two 13 cm risers up.
+    assert!(
+        ground_rise_m >= 0.25,
+        "the ground under the base rose {ground_rise_m} m"
+    );
+    assert!(
+        z - p.start_pos_m[2] >= 0.2,
+        "the base rose only {} m",
+        z - p.start_pos_m[2]
+    );
+}
+
+#[test]
 fn a_course_scenario_that_asks_for_more_progress_than_walked_fails() {
     let mut s = scenario("slope_down_20deg_generated_policy.toml");
     for step in &mut s.step {

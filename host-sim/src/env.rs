@@ -210,6 +210,11 @@ impl HexapodEnv {
         self.slots[i].state
     }
 
+    /// Foot friction coefficient robot `i` drew at its last reset (1.0 without randomization).
+    pub fn foot_friction(&self, i: usize) -> f32 {
+        self.slots[i].friction
+    }
+
     /// The simulated robot `i` (link poses and shapes for a 3D replay).
     pub fn robot_world(&self, i: usize) -> &RobotWorld {
         &self.slots[i].robot

@@ -76,6 +76,50 @@ fn range(t: &Tolerance) -> String {
     }
 }
 
+/// The terrain rows some trials passed and some did not, with each trial's foot friction:
+/// on the steep ramps the friction draw, not the policy, may decide a trial.
+fn friction_of_split_rows(s: &mut String, runs: &[(&ControllerReport, &TerrainResult)]) {
+    let split = |f: &&FeatureResult| f.successes > 0 && f.successes < f.trials;
+    if !runs
+        .iter()
+        .any(|(_, t)| t.features.iter().any(|f| split(&f)))
+    {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "Rows with successes and failures, each trial's foot friction (`report.json` has every \
+         trial's friction, distance and fall):\n\n\
+         | controller | terrain | foot friction of the successes | of the failures |\n|---|---|---|---|"
+    );
+    let list = |f: &FeatureResult, success: bool| {
+        let mut mu: Vec<f32> = f
+            .trial_outcomes
+            .iter()
+            .filter(|t| t.success == success)
+            .map(|t| t.foot_friction)
+            .collect();
+        mu.sort_by(f32::total_cmp);
+        mu.iter()
+            .map(|m| format!("{m:.2}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    for (c, t) in runs {
+        for f in t.features.iter().filter(split) {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} |",
+                c.name,
+                f.name,
+                list(f, true),
+                list(f, false)
+            );
+        }
+    }
+    let _ = writeln!(s);
+}
+
 fn cell(f: &FeatureResult) -> String {
     format!("{}/{} ({:.2} m)", f.successes, f.trials, f.mean_distance_m)
 }
@@ -337,6 +381,7 @@ impl SuiteReport {
                 })
                 .collect();
             let _ = writeln!(s, "| **all** | {} |\n", totals.join(" | "));
+            friction_of_split_rows(s, &runs);
             for f in [
                 "success_stairs_up.png",
                 "success_stairs_down.png",

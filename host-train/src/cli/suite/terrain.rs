@@ -46,6 +46,22 @@ pub struct FeatureResult {
     pub falls: usize,
     /// Mean distance along the command at the end (at the fall for those that fell), m.
     pub mean_distance_m: f64,
+    /// Each trial, in trial order.
+    pub trial_outcomes: Vec<TrialOutcome>,
+}
+
+/// One trial of a feature: its robot's foot friction (the draw most of the steep ramps'
+/// outcomes follow) and what it did.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct TrialOutcome {
+    /// Foot friction coefficient the trial's robot drew.
+    pub foot_friction: f32,
+    /// Distance along the command at the end (at the fall if it fell), m.
+    pub distance_m: f32,
+    /// The trial fell.
+    pub fell: bool,
+    /// No fall and at least [`SUCCESS_DISTANCE_M`] along the command.
+    pub success: bool,
 }
 
 impl FeatureResult {
@@ -175,11 +191,18 @@ pub fn run(
     }
     let mut fell = vec![false; n];
     let mut distance_m = vec![0.0f32; n];
+    let mut foot_friction = vec![0.0f32; n];
     drive(
         &mut env,
         controller,
         steps(DURATION_S),
-        |_, _, commands| {
+        |step, env, commands| {
+            if step == 0 {
+                // The draw of the trial's robot (a robot that falls is reset with another).
+                for (i, f) in foot_friction.iter_mut().enumerate() {
+                    *f = env.foot_friction(i);
+                }
+            }
             for (i, cmd) in commands.iter_mut().enumerate() {
                 *cmd = lanes[lane_of(i)].command;
             }
@@ -204,10 +227,16 @@ pub fn run(
         .enumerate()
         .map(|(lane, l)| {
             let robots: Vec<usize> = (0..n).filter(|&i| lane_of(i) == lane).collect();
-            let successes = robots
+            let trial_outcomes: Vec<TrialOutcome> = robots
                 .iter()
-                .filter(|&&i| !fell[i] && distance_m[i] >= SUCCESS_DISTANCE_M)
-                .count();
+                .map(|&i| TrialOutcome {
+                    foot_friction: foot_friction[i],
+                    distance_m: distance_m[i],
+                    fell: fell[i],
+                    success: !fell[i] && distance_m[i] >= SUCCESS_DISTANCE_M,
+                })
+                .collect();
+            let successes = trial_outcomes.iter().filter(|t| t.success).count();
             FeatureResult {
                 feature: l.feature,
                 name: l.feature.describe(),
@@ -217,6 +246,7 @@ pub fn run(
                 falls: robots.iter().filter(|&&i| fell[i]).count(),
                 mean_distance_m: robots.iter().map(|&i| distance_m[i] as f64).sum::<f64>()
                     / robots.len().max(1) as f64,
+                trial_outcomes,
             }
         })
         .collect();

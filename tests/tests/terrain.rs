@@ -12,44 +12,38 @@ fn scenario(name: &str) -> Scenario {
     Scenario::load(&path).unwrap_or_else(|e| panic!("{e}"))
 }
 
-#[test]
-fn walking_down_the_course_stairs_lowers_the_ground_under_the_robot() {
-    let s = scenario("stairs_down_13cm_generated_policy.toml");
-    let sil = s.run().unwrap_or_else(|e| panic!("{e}"));
-    let p = sil.plant();
-    let [x, y, z] = p.state().base_pos_world_m;
-    let ground_drop_m =
-        p.ground.height_at_m(p.start_pos_m[0], p.start_pos_m[1]) - p.ground.height_at_m(x, y);
-    // 2 m along the course is 1 m past the first edge: at least two 13 cm risers down.
-    assert!(
-        ground_drop_m >= 0.25,
-        "the ground under the base fell {ground_drop_m} m"
-    );
-    assert!(
-        p.start_pos_m[2] - z >= 0.2,
-        "the base fell only {} m",
-        p.start_pos_m[2] - z
-    );
-}
-
-#[test]
-fn climbing_the_course_stairs_raises_the_ground_under_the_robot() {
-    let s = scenario("stairs_up_13cm_generated_policy.toml");
-    let sil = s.run().unwrap_or_else(|e| panic!("{e}"));
+/// Runs a course scenario; the rise of the ground under the base and of the base itself,
+/// from the start to the end (negative: a fall), m.
+fn ground_and_base_rise_m(name: &str) -> (f32, f32) {
+    let sil = scenario(name).run().unwrap_or_else(|e| panic!("{e}"));
     let p = sil.plant();
     let [x, y, z] = p.state().base_pos_world_m;
     let ground_rise_m =
         p.ground.height_at_m(x, y) - p.ground.height_at_m(p.start_pos_m[0], p.start_pos_m[1]);
-    // 2 m along the course is 1 m past the first edge: at least two 13 cm risers up.
+    (ground_rise_m, z - p.start_pos_m[2])
+}
+
+// 2 m along the course is 1 m past the first edge: at least two 13 cm risers, either way.
+
+#[test]
+fn walking_down_the_course_stairs_lowers_the_ground_under_the_robot() {
+    let (ground_m, base_m) = ground_and_base_rise_m("stairs_down_13cm_generated_policy.toml");
     assert!(
-        ground_rise_m >= 0.25,
-        "the ground under the base rose {ground_rise_m} m"
+        ground_m <= -0.25,
+        "the ground under the base fell {} m",
+        -ground_m
     );
+    assert!(base_m <= -0.2, "the base fell only {} m", -base_m);
+}
+
+#[test]
+fn climbing_the_course_stairs_raises_the_ground_under_the_robot() {
+    let (ground_m, base_m) = ground_and_base_rise_m("stairs_up_13cm_generated_policy.toml");
     assert!(
-        z - p.start_pos_m[2] >= 0.2,
-        "the base rose only {} m",
-        z - p.start_pos_m[2]
+        ground_m >= 0.25,
+        "the ground under the base rose {ground_m} m"
     );
+    assert!(base_m >= 0.2, "the base rose only {base_m} m");
 }
 
 #[test]

@@ -122,18 +122,13 @@ pub struct Lane {
 
 /// Every lane of the course, in course order: the terrain features, then the outdoor step.
 fn all_lanes(quick: bool) -> Vec<Lane> {
-    let mut lanes: Vec<(Feature, [f32; 3])> = features(quick)
+    let step = Feature::Step {
+        height_m: OUTDOOR_STEP_M,
+    };
+    features(quick)
         .into_iter()
         .map(|f| (f, TERRAIN_COMMAND))
-        .collect();
-    lanes.push((
-        Feature::Step {
-            height_m: OUTDOOR_STEP_M,
-        },
-        OUTDOOR_COMMAND,
-    ));
-    lanes
-        .into_iter()
+        .chain(std::iter::once((step, OUTDOOR_COMMAND)))
         .enumerate()
         .map(|(course_lane, (feature, command))| Lane {
             course_lane,
@@ -185,9 +180,11 @@ pub fn run(
         HexapodEnv::with_terrain(c.sim_config(cfg, n, DURATION_S), course.terrain().clone())?;
     seed_trials(&mut env, c);
     let lane_of = |i: usize| i / c.trials;
-    let start_of = |i: usize| course.start_pose(lanes[lane_of(i)].course_lane);
-    for i in 0..n {
-        env.set_spawn_pose(i, Some(start_of(i)));
+    let starts: Vec<_> = (0..n)
+        .map(|i| course.start_pose(lanes[lane_of(i)].course_lane))
+        .collect();
+    for (i, start) in starts.iter().enumerate() {
+        env.set_spawn_pose(i, Some(*start));
     }
     let mut fell = vec![false; n];
     let mut distance_m = vec![0.0f32; n];
@@ -217,8 +214,7 @@ pub fn run(
                     continue;
                 }
                 // Heading +x: the distance along the command is the x advance.
-                let start = start_of(i).position_m;
-                distance_m[i] = env.robot_state(i).base_pos_world_m[0] - start[0];
+                distance_m[i] = env.robot_state(i).base_pos_world_m[0] - starts[i].position_m[0];
             }
         },
     )?;
@@ -236,16 +232,20 @@ pub fn run(
                     success: !fell[i] && distance_m[i] >= SUCCESS_DISTANCE_M,
                 })
                 .collect();
-            let successes = trial_outcomes.iter().filter(|t| t.success).count();
+            let count =
+                |keep: fn(&TrialOutcome) -> bool| trial_outcomes.iter().filter(|t| keep(t)).count();
             FeatureResult {
                 feature: l.feature,
                 name: l.feature.describe(),
                 command: l.command,
-                trials: robots.len(),
-                successes,
-                falls: robots.iter().filter(|&&i| fell[i]).count(),
-                mean_distance_m: robots.iter().map(|&i| distance_m[i] as f64).sum::<f64>()
-                    / robots.len().max(1) as f64,
+                trials: trial_outcomes.len(),
+                successes: count(|t| t.success),
+                falls: count(|t| t.fell),
+                mean_distance_m: trial_outcomes
+                    .iter()
+                    .map(|t| t.distance_m as f64)
+                    .sum::<f64>()
+                    / trial_outcomes.len().max(1) as f64,
                 trial_outcomes,
             }
         })

@@ -34,7 +34,8 @@ use std::time::Instant;
 /// Suites known.
 pub const SUITES: [&str; 1] = ["paper"];
 /// Protocols of the paper suite, in the order they run.
-pub const PROTOCOLS: [&str; 5] = ["push", "terrain", "step", "sine", "curriculum"];
+/// `beyond` walks the terrain test's 25 cm stairs and 35 deg slopes, past the paper's range.
+pub const PROTOCOLS: [&str; 6] = ["push", "terrain", "step", "beyond", "sine", "curriculum"];
 /// Trials per test point (the paper: 10).
 pub const TRIALS: usize = 10;
 /// Trials per test point in the quick variant.
@@ -196,6 +197,7 @@ pub fn run(o: &SuiteOptions) -> anyhow::Result<()> {
             conditions: conditions.clone(),
             push: None,
             terrain: None,
+            beyond_paper: None,
             sine: None,
             curriculum: None,
             wall_clock_s: BTreeMap::new(),
@@ -233,6 +235,11 @@ pub fn run(o: &SuiteOptions) -> anyhow::Result<()> {
                 _ => "step",
             };
             time(&mut r, label, t);
+        }
+        if protocols.contains(&"beyond") {
+            let t = Instant::now();
+            r.beyond_paper = Some(terrain::run_beyond(&c.cfg, c.policy.as_mut(), &conditions)?);
+            time(&mut r, "beyond", t);
         }
         if protocols.contains(&"sine") {
             let t = Instant::now();

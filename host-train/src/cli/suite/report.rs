@@ -37,6 +37,8 @@ pub struct ControllerReport {
     pub push: Option<PushResult>,
     /// Terrain success and the outdoor step.
     pub terrain: Option<TerrainResult>,
+    /// The terrain test beyond the paper's range (25 cm stairs, 35 deg slopes).
+    pub beyond_paper: Option<Vec<FeatureResult>>,
     /// Sinusoidal commands.
     pub sine: Option<Vec<SineRun>>,
     /// Curriculum.
@@ -176,6 +178,7 @@ impl SuiteReport {
         }
         self.push_section(&mut s);
         self.terrain_section(&mut s);
+        self.beyond_section(&mut s);
         self.sine_section(&mut s);
         self.curriculum_section(&mut s);
         let _ = writeln!(
@@ -419,6 +422,48 @@ impl SuiteReport {
             }
             let _ = writeln!(s);
         }
+    }
+
+    fn beyond_section(&self, s: &mut String) {
+        let runs: Vec<(&ControllerReport, &Vec<FeatureResult>)> = self
+            .controllers
+            .iter()
+            .filter_map(|c| Some((c, c.beyond_paper.as_ref()?)))
+            .collect();
+        let Some((_, f0)) = runs.first() else { return };
+        let _ = writeln!(
+            s,
+            "## Beyond the paper: {} m stairs and {} deg slopes\n\n\
+             The terrain test's protocol (start, command, duration, success rule) on features past the paper's \
+             range, on a course of their own. Cells: successes of trials (mean distance along the command, m).\n",
+            terrain::BEYOND_STEP_HEIGHTS_M
+                .iter()
+                .map(|h| format!("{h:.2}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            terrain::BEYOND_SLOPES_DEG
+                .iter()
+                .map(|d| format!("{d:.0}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+        );
+        let _ = writeln!(
+            s,
+            "| terrain | {} |\n|---|{}",
+            runs.iter()
+                .map(|r| r.0.name.as_str())
+                .collect::<Vec<_>>()
+                .join(" | "),
+            "---|".repeat(runs.len())
+        );
+        for (k, f) in f0.iter().enumerate() {
+            let cells: Vec<String> = runs
+                .iter()
+                .map(|(_, b)| b.get(k).map(cell).unwrap_or_else(|| "-".into()))
+                .collect();
+            let _ = writeln!(s, "| {} | {} |", f.name, cells.join(" | "));
+        }
+        let _ = writeln!(s);
     }
 
     fn sine_section(&self, s: &mut String) {

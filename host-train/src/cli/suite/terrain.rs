@@ -24,6 +24,10 @@ pub const TERRAIN_COMMAND: [f32; 3] = [0.3, 0.0, 0.0];
 pub const DURATION_S: f32 = 10.0;
 /// Distance along the command a successful trial covers, m.
 pub const SUCCESS_DISTANCE_M: f32 = 2.0;
+/// Beyond the paper: stair risers, m.
+pub const BEYOND_STEP_HEIGHTS_M: [f32; 1] = [0.25];
+/// Beyond the paper: slopes, deg.
+pub const BEYOND_SLOPES_DEG: [f32; 1] = [35.0];
 /// The outdoor step (the paper's flower bed): height, m.
 pub const OUTDOOR_STEP_M: f32 = 0.15;
 /// The outdoor step's command (vx, vy, wz).
@@ -88,11 +92,20 @@ pub struct TerrainResult {
 
 /// The features of the terrain protocol, in report order.
 pub fn features(quick: bool) -> Vec<Feature> {
-    let (steps_m, slopes): (Vec<f32>, Vec<f32>) = if quick {
-        (vec![QUICK_STEP_M], vec![QUICK_SLOPE_DEG])
+    if quick {
+        features_of(&[QUICK_STEP_M], &[QUICK_SLOPE_DEG])
     } else {
-        (STEP_HEIGHTS_M.to_vec(), SLOPES_DEG.to_vec())
-    };
+        features_of(&STEP_HEIGHTS_M, &SLOPES_DEG)
+    }
+}
+
+/// The features beyond the paper's range (the same in the quick variant), in report order.
+pub fn beyond_features() -> Vec<Feature> {
+    features_of(&BEYOND_STEP_HEIGHTS_M, &BEYOND_SLOPES_DEG)
+}
+
+/// Stairs up, stairs down, slopes up, slopes down: one feature per riser and per slope.
+fn features_of(steps_m: &[f32], slopes: &[f32]) -> Vec<Feature> {
     let mut f: Vec<Feature> = Vec::new();
     f.extend(
         steps_m
@@ -173,8 +186,46 @@ pub fn run(
     terrain: bool,
     step: bool,
 ) -> anyhow::Result<TerrainResult> {
-    let course = course(c.quick);
     let lanes = selected_lanes(c.quick, terrain, step);
+    let mut results = run_lanes(cfg, controller, c, &course(c.quick), &lanes)?;
+    let outdoor_step = if step { results.pop() } else { None };
+    Ok(TerrainResult {
+        duration_s: DURATION_S,
+        success_distance_m: SUCCESS_DISTANCE_M,
+        run_up_m: host_sim::course::RUN_UP_M,
+        features: results,
+        outdoor_step,
+    })
+}
+
+/// Runs the features beyond the paper ([`beyond_features`]) on a course of their own, with
+/// the terrain test's command, duration and success rule.
+pub fn run_beyond(
+    cfg: &TrainConfig,
+    controller: &mut dyn SuiteController,
+    c: &Conditions,
+) -> anyhow::Result<Vec<FeatureResult>> {
+    let features = beyond_features();
+    let lanes: Vec<Lane> = features
+        .iter()
+        .enumerate()
+        .map(|(course_lane, &feature)| Lane {
+            course_lane,
+            feature,
+            command: TERRAIN_COMMAND,
+        })
+        .collect();
+    run_lanes(cfg, controller, c, &Course::new(&features), &lanes)
+}
+
+/// Walks `c.trials` robots per lane of `course` for [`DURATION_S`]; one result per lane.
+fn run_lanes(
+    cfg: &TrainConfig,
+    controller: &mut dyn SuiteController,
+    c: &Conditions,
+    course: &Course,
+    lanes: &[Lane],
+) -> anyhow::Result<Vec<FeatureResult>> {
     let n = c.robots(lanes.len());
     let mut env =
         HexapodEnv::with_terrain(c.sim_config(cfg, n, DURATION_S), course.terrain().clone())?;
@@ -218,7 +269,7 @@ pub fn run(
             }
         },
     )?;
-    let mut results: Vec<FeatureResult> = lanes
+    let results: Vec<FeatureResult> = lanes
         .iter()
         .enumerate()
         .map(|(lane, l)| {
@@ -250,14 +301,7 @@ pub fn run(
             }
         })
         .collect();
-    let outdoor_step = if step { results.pop() } else { None };
-    Ok(TerrainResult {
-        duration_s: DURATION_S,
-        success_distance_m: SUCCESS_DISTANCE_M,
-        run_up_m: host_sim::course::RUN_UP_M,
-        features: results,
-        outdoor_step,
-    })
+    Ok(results)
 }
 
 #[cfg(test)]
@@ -284,6 +328,29 @@ mod tests {
             assert_eq!(step[0].course_lane, terrain.len());
             assert_eq!(step[0].command, OUTDOOR_COMMAND);
             assert!(selected_lanes(quick, false, false).is_empty());
+        }
+    }
+
+    /// The features beyond the paper go past its hardest of each kind, one of each.
+    #[test]
+    fn beyond_the_paper_is_past_the_paper_s_range() {
+        let kind_and_size = |f: &Feature| match *f {
+            Feature::StairsUp { step_height_m } => ("stairs up", step_height_m),
+            Feature::StairsDown { step_height_m } => ("stairs down", step_height_m),
+            Feature::SlopeUp { slope_deg } => ("slope up", slope_deg),
+            Feature::SlopeDown { slope_deg } => ("slope down", slope_deg),
+            _ => ("other", 0.0),
+        };
+        let beyond = beyond_features();
+        assert_eq!(beyond.len(), 4);
+        for b in &beyond {
+            let (kind, size) = kind_and_size(b);
+            let paper_max = features(false)
+                .iter()
+                .map(kind_and_size)
+                .filter(|(k, _)| *k == kind)
+                .fold(0.0f32, |m, (_, v)| m.max(v));
+            assert!(paper_max > 0.0 && size > paper_max, "{}", b.describe());
         }
     }
 }

@@ -126,6 +126,31 @@ fn cell(f: &FeatureResult) -> String {
     format!("{}/{} ({:.2} m)", f.successes, f.trials, f.mean_distance_m)
 }
 
+/// A success table's header and rows, one column per controller, one row per feature of the
+/// first controller.
+fn feature_rows(s: &mut String, columns: &[(&str, &[FeatureResult])]) {
+    let _ = writeln!(
+        s,
+        "| terrain | {} |\n|---|{}",
+        columns
+            .iter()
+            .map(|(name, _)| *name)
+            .collect::<Vec<_>>()
+            .join(" | "),
+        "---|".repeat(columns.len())
+    );
+    let Some((_, first)) = columns.first() else {
+        return;
+    };
+    for (k, f) in first.iter().enumerate() {
+        let cells: Vec<String> = columns
+            .iter()
+            .map(|(_, fs)| fs.get(k).map(cell).unwrap_or_else(|| "-".into()))
+            .collect();
+        let _ = writeln!(s, "| {} | {} |", f.name, cells.join(" | "));
+    }
+}
+
 impl SuiteReport {
     /// The report as Markdown; `plots` are the PNG paths relative to the report.
     pub fn markdown(&self) -> String {
@@ -357,22 +382,11 @@ impl SuiteReport {
                 t0.success_distance_m,
                 terrain::TERRAIN_COMMAND[0] * t0.duration_s
             );
-            let _ = writeln!(
-                s,
-                "| terrain | {} |\n|---|{}",
-                runs.iter()
-                    .map(|r| r.0.name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(" | "),
-                "---|".repeat(runs.len())
-            );
-            for (k, f) in t0.features.iter().enumerate() {
-                let cells: Vec<String> = runs
-                    .iter()
-                    .map(|(_, t)| t.features.get(k).map(cell).unwrap_or_else(|| "-".into()))
-                    .collect();
-                let _ = writeln!(s, "| {} | {} |", f.name, cells.join(" | "));
-            }
+            let columns: Vec<(&str, &[FeatureResult])> = runs
+                .iter()
+                .map(|(c, t)| (c.name.as_str(), t.features.as_slice()))
+                .collect();
+            feature_rows(s, &columns);
             let totals: Vec<String> = runs
                 .iter()
                 .map(|(_, t)| {
@@ -430,7 +444,9 @@ impl SuiteReport {
             .iter()
             .filter_map(|c| Some((c, c.beyond_paper.as_ref()?)))
             .collect();
-        let Some((_, f0)) = runs.first() else { return };
+        if runs.is_empty() {
+            return;
+        }
         let _ = writeln!(
             s,
             "## Beyond the paper: {} m stairs and {} deg slopes\n\n\
@@ -447,22 +463,11 @@ impl SuiteReport {
                 .collect::<Vec<_>>()
                 .join(", "),
         );
-        let _ = writeln!(
-            s,
-            "| terrain | {} |\n|---|{}",
-            runs.iter()
-                .map(|r| r.0.name.as_str())
-                .collect::<Vec<_>>()
-                .join(" | "),
-            "---|".repeat(runs.len())
-        );
-        for (k, f) in f0.iter().enumerate() {
-            let cells: Vec<String> = runs
-                .iter()
-                .map(|(_, b)| b.get(k).map(cell).unwrap_or_else(|| "-".into()))
-                .collect();
-            let _ = writeln!(s, "| {} | {} |", f.name, cells.join(" | "));
-        }
+        let columns: Vec<(&str, &[FeatureResult])> = runs
+            .iter()
+            .map(|(c, b)| (c.name.as_str(), b.as_slice()))
+            .collect();
+        feature_rows(s, &columns);
         let _ = writeln!(s);
     }
 

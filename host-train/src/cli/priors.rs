@@ -5,6 +5,7 @@ use crate::priors::clip::MotionClip;
 use crate::priors::command::default_commands;
 use crate::priors::dataset::MotionDataset;
 use crate::priors::generate::{generate_clip, ClipReport, GeneratorConfig};
+use crate::priors::optimize::GaitQpConfig;
 use crate::priors::plot::plot_clip;
 use crate::priors::schedule::TripodSchedule;
 use crate::priors::sim_tracking::{replay_clip, ReplayConfig, ReplayReport};
@@ -16,6 +17,11 @@ use host_sim::urdf_model::{default_urdf_path, UrdfModel};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+/// Highest swing apex above the ground from the nominal stance, m (the legs' reach).
+const MAX_SWING_CLEARANCE_M: f64 = 0.2;
+/// Highest base lift above the nominal stance, m.
+const MAX_BASE_LIFT_M: f64 = 0.08;
 
 /// Arguments of `hexapod priors`.
 #[derive(clap::Args, Debug)]
@@ -53,6 +59,11 @@ pub struct PriorsArgs {
     /// body's ground early (assets/priors/README.md).
     #[arg(long, default_value_t = GeneratorConfig::default().swing_lead_s)]
     pub swing_lead_s: f64,
+    /// Height of the base above the nominal stance's (0.31 m), m: a high stance for climbing,
+    /// whose legs stand straighter, so a swing apex reaches higher above the ground before
+    /// the thigh meets its limit.
+    #[arg(long, default_value_t = GeneratorConfig::default().qp.base_lift_m)]
+    pub base_lift_m: f64,
     /// With --validate: passes of iterative learning control on the replay's joint targets
     /// before the recorded replay (0: the clip's trajectories as they are, as the trainer's
     /// tracked prior states are made). A diagnostic: how the clips play when the drives'
@@ -67,9 +78,17 @@ pub fn run(args: PriorsArgs) -> anyhow::Result<()> {
     let (clips, dir, gen_reports) = match &args.check {
         Some(dir) => (check(dir)?, dir.clone(), None),
         None => {
-            if !(0.02..=0.2).contains(&args.swing_clearance_m) {
+            if !(0.0..=MAX_BASE_LIFT_M).contains(&args.base_lift_m) {
                 bail!(
-                    "--swing-clearance-m {} is outside 0.02..=0.2 m (the legs reach about 0.2 m above the ground)",
+                    "--base-lift-m {} is outside 0..={MAX_BASE_LIFT_M} m",
+                    args.base_lift_m
+                );
+            }
+            let max_clearance_m = MAX_SWING_CLEARANCE_M + args.base_lift_m;
+            if !(0.02..=max_clearance_m).contains(&args.swing_clearance_m) {
+                bail!(
+                    "--swing-clearance-m {} is outside 0.02..={max_clearance_m} m (the legs reach about \
+                     {MAX_SWING_CLEARANCE_M} m above the ground from the nominal stance, more by the base's lift)",
                     args.swing_clearance_m
                 );
             }
@@ -87,6 +106,10 @@ pub fn run(args: PriorsArgs) -> anyhow::Result<()> {
                 swing_frames: args.swing_frames,
                 swing_contact_speed_m_s: args.swing_contact_speed_m_s,
                 swing_lead_s: args.swing_lead_s,
+                qp: GaitQpConfig {
+                    base_lift_m: args.base_lift_m,
+                    ..GaitQpConfig::default()
+                },
                 ..GeneratorConfig::default()
             };
             // Refused before anything is written.
@@ -293,6 +316,9 @@ fn regenerate_command(args: &PriorsArgs) -> String {
     }
     if args.swing_lead_s != GeneratorConfig::default().swing_lead_s {
         command += &format!(" --swing-lead-s {}", args.swing_lead_s);
+    }
+    if args.base_lift_m != GeneratorConfig::default().qp.base_lift_m {
+        command += &format!(" --base-lift-m {}", args.base_lift_m);
     }
     command + " --validate"
 }

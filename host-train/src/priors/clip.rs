@@ -41,6 +41,10 @@ pub enum LoopMode {
     Clamp,
 }
 
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
+}
+
 /// Solver and kinematic figures of a generated clip, stored for traceability.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -61,6 +65,10 @@ pub struct ClipMetadata {
     /// when absent).
     #[serde(default)]
     pub swing_lead_s: f64,
+    /// Height of the base above the nominal stance's, m (0 when absent, and not written
+    /// when 0).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub base_lift_m: f64,
     /// Clarabel's final status.
     pub solver_status: String,
     /// QP objective.

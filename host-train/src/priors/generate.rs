@@ -158,6 +158,7 @@ pub fn generate_clip(
         swing_clearance_m: cfg.swing_clearance_m,
         swing_contact_speed_m_s: cfg.swing_contact_speed_m_s,
         swing_lead_s: cfg.swing_lead_s,
+        base_lift_m: cfg.qp.base_lift_m,
         solver_status: report.solver_status.clone(),
         objective: report.objective,
         max_qp_violation: report.max_qp_violation,

@@ -63,6 +63,9 @@ pub struct GaitQpConfig {
     pub max_tilt_rad: f64,
     /// Sequential convex iterations (lever-arm updates).
     pub iterations: usize,
+    /// Height of the base above the nominal stance's, m: the legs stand straighter, and a
+    /// swing apex of a given height above the ground folds the thigh less.
+    pub base_lift_m: f64,
 }
 
 impl Default for GaitQpConfig {
@@ -85,6 +88,7 @@ impl Default for GaitQpConfig {
             max_height_offset_m: 0.04,
             max_tilt_rad: 0.15,
             iterations: 3,
+            base_lift_m: 0.0,
         }
     }
 }
@@ -100,7 +104,7 @@ pub struct GaitSolution {
     pub feet_m: Vec<[V3; NUM_LEGS]>,
     /// Contact flags per frame and leg.
     pub contacts: Vec<[bool; NUM_LEGS]>,
-    /// Nominal base height.
+    /// Base height the cycle moves about (the nominal stance's plus the lift), m.
     pub base_height_m: f64,
     /// The last QP's solution.
     pub qp: QpSolution,
@@ -137,7 +141,7 @@ pub fn optimize_gait(plan: &FootPlan, cfg: &GaitQpConfig) -> Result<GaitSolution
     let n = sched.frames_per_cycle();
     let dt = sched.frame_dt_s();
     let body = RigidBody::hexapod();
-    let h0 = nominal_base_height_m();
+    let h0 = nominal_base_height_m() + cfg.base_lift_m;
     let mut feet_m = Vec::with_capacity(n);
     let mut contacts = Vec::with_capacity(n);
     for k in 0..n {

@@ -557,3 +557,39 @@ fn assert_dataset_is_fresh(dir: &std::path::Path, cfg: &GeneratorConfig, regener
         }
     }
 }
+
+#[test]
+fn a_lifted_base_stands_higher_and_folds_the_thigh_less_for_the_same_swing() {
+    let cmd = GaitCommand::new("forward_0.3", 0.3, 0.0, 0.0);
+    let make = |base_lift_m: f64| {
+        let mut cfg = sync_config();
+        cfg.swing_clearance_m = 0.20;
+        cfg.qp.base_lift_m = base_lift_m;
+        generate_clip(&cmd, &cfg).unwrap().0
+    };
+    let (plain, lifted) = (make(0.0), make(0.03));
+    let mean_height = |c: &MotionClip| {
+        c.frames.iter().map(|f| f.base_height_m()).sum::<f32>() / c.frames.len() as f32
+    };
+    let lift = mean_height(&lifted) - mean_height(&plain);
+    assert!((lift - 0.03).abs() < 2e-3, "base lifted by {lift} m");
+    // Thigh angle: 0 horizontal, negative folds the knee up (the joint's limit is -0.80 rad).
+    let highest_thigh = |c: &MotionClip| {
+        c.frames
+            .iter()
+            .flat_map(|f| (0..6).map(move |leg| f.joint_pos_rad[3 * leg + 1]))
+            .fold(f32::INFINITY, f32::min)
+    };
+    assert!(
+        highest_thigh(&lifted) > highest_thigh(&plain) + 0.05,
+        "thigh at the apex: lifted {} rad, plain {} rad",
+        highest_thigh(&lifted),
+        highest_thigh(&plain)
+    );
+    let lift_of = |c: &MotionClip| c.metadata.as_ref().map(|m| m.base_lift_m);
+    assert_eq!(lift_of(&lifted), Some(0.03));
+    assert_eq!(lift_of(&plain), Some(0.0));
+    // Unlifted clips are written as before (no `base_lift_m` key).
+    assert!(!plain.to_json().contains("base_lift_m"));
+    assert!(lifted.to_json().contains("\"base_lift_m\":0.03"));
+}

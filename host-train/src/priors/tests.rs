@@ -7,7 +7,7 @@ use super::dataset::{MotionDataset, PriorStates, ReferenceMotion};
 use super::generate::{generate_clip, GeneratorConfig};
 use super::sim_tracking::{replay_clip, sim_amp_state, ReplayConfig};
 use hexapod_core::amp::{AMP_BASE_ANG_VEL, AMP_JOINT_POS, AMP_JOINT_VEL};
-use hexapod_core::robot::{TRIPOD_A, TRIPOD_B};
+use hexapod_core::robot::{joint_index, Joint, Leg, TRIPOD_A, TRIPOD_B};
 use host_sim::frames::rotate;
 use host_sim::robot::{RobotState, RobotWorld};
 use rand::SeedableRng;
@@ -577,7 +577,7 @@ fn a_lifted_base_stands_higher_and_folds_the_thigh_less_for_the_same_swing() {
     let highest_thigh = |c: &MotionClip| {
         c.frames
             .iter()
-            .flat_map(|f| (0..6).map(move |leg| f.joint_pos_rad[3 * leg + 1]))
+            .flat_map(|f| Leg::ALL.map(|leg| f.joint_pos_rad[joint_index(leg, Joint::Thigh)]))
             .fold(f32::INFINITY, f32::min)
     };
     assert!(

@@ -138,10 +138,18 @@ fn all_lanes(quick: bool) -> Vec<Lane> {
     let step = Feature::Step {
         height_m: OUTDOOR_STEP_M,
     };
-    features(quick)
+    lanes_in_order(
+        features(quick)
+            .into_iter()
+            .map(|f| (f, TERRAIN_COMMAND))
+            .chain(std::iter::once((step, OUTDOOR_COMMAND))),
+    )
+}
+
+/// One lane per (feature, command), numbered in course order.
+fn lanes_in_order(features: impl IntoIterator<Item = (Feature, [f32; 3])>) -> Vec<Lane> {
+    features
         .into_iter()
-        .map(|f| (f, TERRAIN_COMMAND))
-        .chain(std::iter::once((step, OUTDOOR_COMMAND)))
         .enumerate()
         .map(|(course_lane, (feature, command))| Lane {
             course_lane,
@@ -206,15 +214,7 @@ pub fn run_beyond(
     c: &Conditions,
 ) -> anyhow::Result<Vec<FeatureResult>> {
     let features = beyond_features();
-    let lanes: Vec<Lane> = features
-        .iter()
-        .enumerate()
-        .map(|(course_lane, &feature)| Lane {
-            course_lane,
-            feature,
-            command: TERRAIN_COMMAND,
-        })
-        .collect();
+    let lanes = lanes_in_order(features.iter().map(|&f| (f, TERRAIN_COMMAND)));
     run_lanes(cfg, controller, c, &Course::new(&features), &lanes)
 }
 

@@ -150,6 +150,15 @@ impl MultibodyTreeFactorization {
             n,
             "Tree factorization solve: dimension mismatch."
         );
+        if b.strides().0 == 1 {
+            for mut col in b.column_iter_mut() {
+                // SAFETY: a column with a unit row stride is `n` contiguous entries, borrowed
+                // mutably through `col` for this scope.
+                let x = unsafe { core::slice::from_raw_parts_mut(col.as_mut_ptr(), n) };
+                self.solve_slice(x);
+            }
+            return true;
+        }
         const STACK_DIM: usize = 64;
         let mut stack = [0.0; STACK_DIM];
         let mut heap = Vec::new();
@@ -218,19 +227,30 @@ pub(crate) struct MultibodyDofTree {
     pub parents: Vec<usize>,
     full_parents: Vec<usize>,
     reduced_ids: Vec<usize>,
+    /// The links the tree was built from, and the links of the latest call (compared with
+    /// them: the tree is rebuilt only when they differ).
+    links: Vec<(usize, usize, usize, bool)>,
+    new_links: Vec<(usize, usize, usize, bool)>,
 }
 
 impl MultibodyDofTree {
     /// Rebuilds the tree from the links, given in an order where every parent precedes its
     /// children, each as `(parent_link, first_dof, ndofs, kinematic)`; the root's parent is
-    /// ignored. DoFs must be numbered contiguously in link order.
+    /// ignored. DoFs must be numbered contiguously in link order. Nothing is done when the
+    /// links are those of the previous call.
     pub fn rebuild(&mut self, links: impl Iterator<Item = (usize, usize, usize, bool)>) {
+        self.new_links.clear();
+        self.new_links.extend(links);
+        if self.new_links == self.links && !self.chain_starts.is_empty() {
+            return;
+        }
+        core::mem::swap(&mut self.links, &mut self.new_links);
         self.chain_dofs.clear();
         self.chain_starts.clear();
         self.parents.clear();
         self.full_parents.clear();
         self.reduced_ids.clear();
-        for (i, (parent, first_dof, ndofs, kinematic)) in links.enumerate() {
+        for (i, &(parent, first_dof, ndofs, kinematic)) in self.links.iter().enumerate() {
             debug_assert_eq!(first_dof, self.full_parents.len());
             self.chain_starts.push(self.chain_dofs.len());
             let mut full_parent = NO_PARENT;
@@ -365,5 +385,43 @@ mod test {
         assert_eq!(tree.chain(4), &[0, 1, 6]);
         // Reduced ordering: full DoFs 0, 1, 2, 4, 5, 6 (3 is kinematic).
         assert_eq!(tree.parents, vec![NO_PARENT, 0, 1, 2, 3, 1]);
+
+        // The same links again keep the tree; a link turned kinematic rebuilds it.
+        tree.rebuild(links.into_iter());
+        assert_eq!(tree.parents, vec![NO_PARENT, 0, 1, 2, 3, 1]);
+        let mut changed = links;
+        changed[4].3 = true;
+        tree.rebuild(changed.into_iter());
+        assert_eq!(tree.chain(4), &[0, 1, 6]);
+        assert_eq!(tree.parents, vec![NO_PARENT, 0, 1, 2, 3]);
+    }
+
+    #[test]
+    fn refactoring_another_tree_and_strided_right_hand_sides_solve_as_dense_lu() {
+        // One factorization value reused on two trees (its ancestor lists rebuilt), solving a
+        // contiguous column and one read with a row stride of 2.
+        let mut f = MultibodyTreeFactorization::default();
+        for parents in [tree(), vec![NO_PARENT, 0, 0, 2, NO_PARENT, 4, 5]] {
+            let n = parents.len();
+            let m = tree_matrix(&parents, 0.3);
+            f.factor(&m, &parents);
+            assert!(f.is_tree_sparse());
+            let b = DVector::from_fn(n, |i, _| i as Real - 1.5);
+            let mut x_lu = b.clone();
+            m.clone().lu().solve_mut(&mut x_lu);
+
+            let mut x = b.clone();
+            assert!(f.solve_mut(&mut x));
+            assert!((&x - &x_lu).amax() < 1.0e-5, "{x} vs {x_lu}");
+
+            let mut interleaved =
+                DVector::from_fn(2 * n, |i, _| if i % 2 == 0 { b[i / 2] } else { 9.0 });
+            let mut strided = interleaved.rows_with_step_mut(0, n, 1);
+            assert!(f.solve_mut(&mut strided));
+            for i in 0..n {
+                assert!((interleaved[2 * i] - x_lu[i]).abs() < 1.0e-5);
+                assert_eq!(interleaved[2 * i + 1], 9.0);
+            }
+        }
     }
 }

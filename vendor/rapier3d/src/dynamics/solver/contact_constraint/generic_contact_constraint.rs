@@ -121,6 +121,9 @@ impl GenericContactConstraintBuilder {
         if jacobians.nrows() < required_jacobian_len {
             jacobians.resize_vertically_mut(required_jacobian_len, 0.0);
         }
+        // Only the rows this constraint reserves start at zero (the buffer keeps its largest size
+        // across steps; zeroing all of it each step cost more than the rows themselves).
+        jacobians.as_mut_slice()[*jacobian_id..required_jacobian_len].fill(0.0);
 
         let chunk_j_id = *jacobian_id;
 

@@ -131,6 +131,10 @@ impl JointGenericExternalConstraintBuilder {
         if jacobians.nrows() < required_jacobian_len {
             jacobians.resize_vertically_mut(required_jacobian_len, 0.0);
         }
+        // Only the rows this joint reserves start at zero (see `generic_contact_constraint`).
+        jacobians.as_mut_slice()
+            [required_jacobian_len - multibodies_ndof * 2 * num_rows..required_jacobian_len]
+            .fill(0.0);
 
         let mut joint_data = masked_data;
         // NOTE: multibody links are positioned by `link.local_to_world` which is
@@ -295,10 +299,13 @@ impl JointGenericInternalConstraintBuilder {
             constraint_id: *out_constraint_id,
         });
 
+        let first_row = *j_id;
         *j_id += num_constraints * multibody.ndofs() * 2;
         if jacobians.nrows() < *j_id {
             jacobians.resize_vertically_mut(*j_id, 0.0);
         }
+        // Only the rows this link reserves start at zero (see `generic_contact_constraint`).
+        jacobians.as_mut_slice()[first_row..*j_id].fill(0.0);
 
         *out_constraint_id += num_constraints;
     }

@@ -129,6 +129,12 @@ pub struct Multibody {
     chain_jacobians: Vec<Jacobian<Real>>,
     chain_mass_j: Jacobian<Real>,
     chain_acc_mass_j: Jacobian<Real>,
+    // The inputs of the latest `forward_kinematics`, as bit patterns (see
+    // `forward_kinematics_inputs_changed`), and the buffer the next call's are written to.
+    #[cfg_attr(feature = "serde-serialize", serde(skip))]
+    fk_inputs: Vec<u32>,
+    #[cfg_attr(feature = "serde-serialize", serde(skip))]
+    fk_inputs_next: Vec<u32>,
 }
 impl Default for Multibody {
     fn default() -> Self {
@@ -165,6 +171,8 @@ impl Multibody {
             chain_jacobians: Vec::new(),
             chain_mass_j: Jacobian::zeros(0),
             chain_acc_mass_j: Jacobian::zeros(0),
+            fk_inputs: Vec::new(),
+            fk_inputs_next: Vec::new(),
             root_is_dynamic: false,
             self_contacts_enabled,
             couplings: Vec::new(),
@@ -1203,11 +1211,13 @@ impl Multibody {
                 link_j_v.gemm(1.0, &shift_tr, &link_j_w, 1.0);
             }
         }
-    
+
         let mut augmented_mass = DMatrix::zeros(self.ndofs, self.ndofs);
         let mut acc_augmented_mass = DMatrix::zeros(self.ndofs, self.ndofs);
-        let mut coriolis_v_all = vec![OMatrix::<Real, Dim, Dyn>::zeros(self.ndofs); self.links.len()];
-        let mut coriolis_w_all = vec![OMatrix::<Real, AngDim, Dyn>::zeros(self.ndofs); self.links.len()];
+        let mut coriolis_v_all =
+            vec![OMatrix::<Real, Dim, Dyn>::zeros(self.ndofs); self.links.len()];
+        let mut coriolis_w_all =
+            vec![OMatrix::<Real, AngDim, Dyn>::zeros(self.ndofs); self.links.len()];
         let mut i_coriolis_dt = Jacobian::zeros(self.ndofs);
         let mut curr_assembly_id = 0;
 
@@ -1227,7 +1237,10 @@ impl Multibody {
             );
             curr_assembly_id += link.joint.ndofs();
 
-            assert!(!link.joint.kinematic, "the reference has no kinematic links");
+            assert!(
+                !link.joint.kinematic,
+                "the reference has no kinematic links"
+            );
 
             #[allow(unused_mut)] // mut is needed for 3D but not for 2D.
             let mut augmented_inertia = rb_inertia;
@@ -1247,10 +1260,8 @@ impl Multibody {
             let rb_mass_matrix_wo_gyro = concat_rb_mass_matrix(rb_mass, rb_inertia.into());
             #[allow(clippy::useless_conversion)] // Needed in 3D, no-op in 2D
             let rb_mass_matrix = concat_rb_mass_matrix(rb_mass, augmented_inertia.into());
-            augmented_mass
-                .quadform(1.0, &rb_mass_matrix_wo_gyro, body_jacobian, 1.0);
-            acc_augmented_mass
-                .quadform(1.0, &rb_mass_matrix, body_jacobian, 1.0);
+            augmented_mass.quadform(1.0, &rb_mass_matrix_wo_gyro, body_jacobian, 1.0);
+            acc_augmented_mass.quadform(1.0, &rb_mass_matrix, body_jacobian, 1.0);
 
             /*
              *
@@ -1377,8 +1388,7 @@ impl Multibody {
                 i_coriolis_dt_w.gemm(dt, &mat_to_na(rb_inertia), coriolis_w, 0.0);
             }
 
-            acc_augmented_mass
-                .gemm_tr(1.0, rb_j, &i_coriolis_dt, 1.0);
+            acc_augmented_mass.gemm_tr(1.0, rb_j, &i_coriolis_dt, 1.0);
         }
 
         /*
@@ -1761,6 +1771,11 @@ impl Multibody {
     ) {
         // Be sure the degrees of freedom match and take the root position if needed.
         self.update_root_type(bodies, read_root_pose_from_rigid_body);
+        // The step starts with forward kinematics in case the user moved something; when
+        // nothing it reads changed since the last call, its results are already there.
+        if !self.forward_kinematics_inputs_changed(bodies) {
+            return;
+        }
 
         // Special case for the root, which has no parent.
         {
@@ -1798,6 +1813,47 @@ impl Multibody {
          * Compute body jacobians.
          */
         self.update_body_jacobians();
+    }
+
+    /// Whether anything `forward_kinematics` reads after `update_root_type` differs, bit for
+    /// bit, from its previous call: each link's joint frames, axes, coordinates and rotation,
+    /// its place in the tree, and its body's type and local center of mass. Records them.
+    fn forward_kinematics_inputs_changed(&mut self, bodies: &RigidBodySet) -> bool {
+        let mut next = core::mem::take(&mut self.fk_inputs_next);
+        next.clear();
+        let push_reals = |next: &mut Vec<u32>, values: &[Real]| {
+            next.extend(values.iter().map(|v| v.to_bits()));
+        };
+        for link in self.links.iter() {
+            let joint = &link.joint;
+            let (index, generation) = link.rigid_body.into_raw_parts();
+            next.extend([
+                link.internal_id as u32,
+                link.assembly_id as u32,
+                link.parent_internal_id as u32,
+                index,
+                generation,
+                joint.data.locked_axes.bits() as u32,
+                joint.data.coupled_axes.bits() as u32,
+                joint.kinematic as u32,
+            ]);
+            for frame in [&joint.data.local_frame1, &joint.data.local_frame2] {
+                push_reals(&mut next, frame.translation.as_ref());
+                push_reals(&mut next, frame.rotation.as_ref());
+            }
+            push_reals(&mut next, joint.coords.as_slice());
+            push_reals(&mut next, joint.joint_rot.as_ref());
+            match bodies.get(link.rigid_body) {
+                Some(rb) => {
+                    next.push(rb.body_type as u32);
+                    push_reals(&mut next, rb.mprops.local_mprops.local_com.as_ref());
+                }
+                None => next.push(u32::MAX),
+            }
+        }
+        let changed = next != self.fk_inputs;
+        self.fk_inputs_next = core::mem::replace(&mut self.fk_inputs, next);
+        changed
     }
 
     /// Computes the ids of all the links between the root and the link identified by `link_id`.
@@ -2204,6 +2260,57 @@ mod test {
     };
     use na::{DVector, RowDVector};
 
+    /// `forward_kinematics` does nothing when what it reads is, bit for bit, what its previous
+    /// call read (every step starts with one): a repeated call leaves what a full computation
+    /// gives, and a user's change between steps (a joint turned, the root body moved) still
+    /// moves the links.
+    #[cfg(feature = "dim3")]
+    #[test]
+    fn forward_kinematics_follows_user_changes_and_skips_only_repeats() {
+        use super::Multibody;
+        use crate::prelude::RevoluteJointBuilder;
+        let mut bodies = RigidBodySet::new();
+        let mut joints = MultibodyJointSet::new();
+        let base = bodies.insert(RigidBodyBuilder::dynamic().additional_mass(1.0));
+        let arm = bodies.insert(
+            RigidBodyBuilder::dynamic()
+                .translation(Vector::new(1.0, 0.0, 0.0))
+                .additional_mass(1.0),
+        );
+        let hinge = RevoluteJointBuilder::new(Vector::Z).local_anchor2(Vector::new(-1.0, 0.0, 0.0));
+        joints.insert(base, arm, hinge, true).unwrap();
+        let id = joints.rigid_body_link(base).unwrap().multibody;
+        let mb = joints.get_multibody_mut(id).unwrap();
+        let arm_position = |mb: &Multibody| mb.link(1).unwrap().local_to_world().translation;
+        let near = |a: Vector, b: Vector| (a - b).length() < 1.0e-5;
+
+        mb.forward_kinematics(&bodies, true);
+        let start = arm_position(mb);
+        assert!(near(start, Vector::new(1.0, 0.0, 0.0)));
+        mb.forward_kinematics(&bodies, true);
+        let mut full = mb.clone();
+        full.fk_inputs.clear();
+        full.forward_kinematics(&bodies, true);
+        assert_eq!(full.body_jacobians, mb.body_jacobians);
+        assert_eq!(arm_position(&full), arm_position(mb));
+
+        // The hinge (the last DoF, after the free root's six) turned by half a radian.
+        let mut disp = vec![0.0; mb.ndofs()];
+        *disp.last_mut().unwrap() = 0.5;
+        mb.apply_displacements(&disp);
+        mb.forward_kinematics(&bodies, true);
+        let turned = arm_position(mb);
+        assert!(
+            near(turned, Vector::new(0.5f32.cos(), 0.5f32.sin(), 0.0)),
+            "{turned:?}"
+        );
+
+        // The root body moved: the whole multibody follows it.
+        bodies[base].set_translation(Vector::new(0.0, 2.0, 0.0), true);
+        mb.forward_kinematics(&bodies, true);
+        assert!(near(arm_position(mb), turned + Vector::new(0.0, 2.0, 0.0)));
+    }
+
     /// The tree-sparse assembly gives the matrices (and body Jacobians) of the dense one, on a
     /// floating base with branches of revolute, prismatic and spherical joints, moving.
     #[cfg(feature = "dim3")]
@@ -2218,8 +2325,17 @@ mod test {
         let mut colliders = ColliderSet::new();
         let mut joints = MultibodyJointSet::new();
         let mut builder = |pos: Vector| {
-            let h = bodies.insert(RigidBodyBuilder::dynamic().translation(pos).angvel(Vector::new(0.3, -0.7, 1.1)).linvel(Vector::new(0.2, 0.1, -0.4)));
-            colliders.insert_with_parent(crate::prelude::ColliderBuilder::cuboid(0.1, 0.05, 0.2).density(2.0), h, &mut bodies);
+            let h = bodies.insert(
+                RigidBodyBuilder::dynamic()
+                    .translation(pos)
+                    .angvel(Vector::new(0.3, -0.7, 1.1))
+                    .linvel(Vector::new(0.2, 0.1, -0.4)),
+            );
+            colliders.insert_with_parent(
+                crate::prelude::ColliderBuilder::cuboid(0.1, 0.05, 0.2).density(2.0),
+                h,
+                &mut bodies,
+            );
             h
         };
         let base = builder(Vector::ZERO);
@@ -2229,16 +2345,24 @@ mod test {
             let a = builder(dir * 0.3);
             let b = builder(dir * 0.6);
             let c = builder(dir * 0.9);
-            let rev = RevoluteJointBuilder::new(Vector::Z).local_anchor1(dir * 0.15).local_anchor2(-dir * 0.15);
+            let rev = RevoluteJointBuilder::new(Vector::Z)
+                .local_anchor1(dir * 0.15)
+                .local_anchor2(-dir * 0.15);
             joints.insert(base, a, rev, true).unwrap();
             if leg == 1 {
-                let sph = SphericalJointBuilder::new().local_anchor1(dir * 0.15).local_anchor2(-dir * 0.15);
+                let sph = SphericalJointBuilder::new()
+                    .local_anchor1(dir * 0.15)
+                    .local_anchor2(-dir * 0.15);
                 joints.insert(a, b, sph, true).unwrap();
             } else {
-                let rev = RevoluteJointBuilder::new(Vector::X).local_anchor1(dir * 0.15).local_anchor2(-dir * 0.15);
+                let rev = RevoluteJointBuilder::new(Vector::X)
+                    .local_anchor1(dir * 0.15)
+                    .local_anchor2(-dir * 0.15);
                 joints.insert(a, b, rev, true).unwrap();
             }
-            let pri = PrismaticJointBuilder::new(Vector::Y).local_anchor1(dir * 0.15).local_anchor2(-dir * 0.15);
+            let pri = PrismaticJointBuilder::new(Vector::Y)
+                .local_anchor1(dir * 0.15)
+                .local_anchor2(-dir * 0.15);
             joints.insert(b, c, pri, true).unwrap();
             handles.extend([a, b, c]);
         }
@@ -2286,16 +2410,30 @@ mod test {
         let (mass, acc_mass, jacobians) = mb.dense_reference_mass_matrices(params.dt, &bodies);
         assert_eq!(mb.ndofs(), 6 + 3 * 3 + 2);
         for (i, j) in jacobians.iter().enumerate() {
-            assert!((j - mb.body_jacobian(i)).amax() < 1.0e-5, "body Jacobian of link {i}");
+            assert!(
+                (j - mb.body_jacobian(i)).amax() < 1.0e-5,
+                "body Jacobian of link {i}"
+            );
         }
         let scale = mass.amax();
         // The velocity-dependent terms are not negligible in this state.
         assert!((&acc_mass - &mass).amax() > 1.0e-3 * scale);
-        assert!((&mass - &mb.augmented_mass).amax() < 1.0e-5 * scale, "{mass} vs {}", mb.augmented_mass);
-        assert!((&acc_mass - &mb.acc_augmented_mass).amax() < 1.0e-5 * scale, "{acc_mass} vs {}", mb.acc_augmented_mass);
+        assert!(
+            (&mass - &mb.augmented_mass).amax() < 1.0e-5 * scale,
+            "{mass} vs {}",
+            mb.augmented_mass
+        );
+        assert!(
+            (&acc_mass - &mb.acc_augmented_mass).amax() < 1.0e-5 * scale,
+            "{acc_mass} vs {}",
+            mb.acc_augmented_mass
+        );
         // The factorizations solve with them.
         let b = DVector::from_fn(mb.ndofs(), |i, _| (i as Real * 0.37).sin());
-        for (m, f) in [(&mass, &mb.inv_augmented_mass), (&acc_mass, &mb.acc_inv_augmented_mass)] {
+        for (m, f) in [
+            (&mass, &mb.inv_augmented_mass),
+            (&acc_mass, &mb.acc_inv_augmented_mass),
+        ] {
             assert!(f.is_tree_sparse());
             let mut x = b.clone();
             assert!(f.solve_mut(&mut x));

@@ -606,21 +606,20 @@ impl Multibody {
                 rb.forces.force - rb_mass * acc.linvel,
                 rb.forces.torque - gyroscopic - rb_inertia * acc.angvel,
             );
-            self.accelerations.gemv_tr(
-                1.0,
-                &self.body_jacobians[i],
-                external_forces.as_vector(),
-                1.0,
-            );
+            // `accelerations += Jᵀ·f` on the link's chain: its body Jacobian's other columns
+            // are zero (see `update_body_jacobians`), and the `gemv_tr` over all of them added
+            // only zeros there.
+            let chain = self.dof_tree.chain(i);
+            let jacobian = &self.body_jacobians[i];
+            for &dof in chain {
+                self.accelerations[dof] += jacobian.column(dof).dot(external_forces.as_vector());
+            }
 
             if check_implicit_coriolis_divergence {
                 let applied_forces = Force::new(rb.forces.force, rb.forces.torque);
-                pos_forces.gemv_tr(
-                    1.0,
-                    &self.body_jacobians[i],
-                    applied_forces.as_vector(),
-                    1.0,
-                );
+                for &dof in chain {
+                    pos_forces[dof] += jacobian.column(dof).dot(applied_forces.as_vector());
+                }
             }
         }
 

@@ -294,3 +294,63 @@ test_device!(
 );
 test_device!(squeeze_mm, squeeze_mm_cpu, squeeze_mm_gpu, squeeze_mm_metal);
 test_device!(mm_layout, mm_layout_cpu, mm_layout_gpu, mm_layout_metal);
+
+/// The CPU product does not zero its output before `gemm` writes it: every entry must come
+/// from the product, whatever the reused memory held. Memory just freed, filled with NaN,
+/// is offered to the output first; shapes cover gemm's vector paths (one row or column),
+/// a batch, a batch-invariant right-hand side and an empty inner dimension.
+#[test]
+fn cpu_matmul_output_never_reads_reused_memory() -> Result<()> {
+    let naive = |a: &[f32], b: &[f32], m: usize, k: usize, n: usize| -> Vec<f32> {
+        let mut c = vec![0.0f32; m * n];
+        for i in 0..m {
+            for j in 0..n {
+                c[i * n + j] = (0..k).map(|p| a[i * k + p] * b[p * n + j]).sum();
+            }
+        }
+        c
+    };
+    for &(batch, m, k, n) in &[
+        (1, 64, 32, 48),
+        (1, 1, 7, 1),
+        (1, 1, 33, 17),
+        (1, 19, 33, 1),
+        (3, 5, 4, 6),
+        (1, 300, 87, 16),
+    ] {
+        let a_data: Vec<f32> = (0..batch * m * k)
+            .map(|i| ((i * 7) % 13) as f32 - 6.0)
+            .collect();
+        let b_data: Vec<f32> = (0..batch * k * n)
+            .map(|i| ((i * 5) % 11) as f32 - 5.0)
+            .collect();
+        let a = Tensor::from_slice(&a_data, (batch, m, k), &Device::Cpu)?;
+        let b = Tensor::from_slice(&b_data, (batch, k, n), &Device::Cpu)?;
+        drop(std::hint::black_box(vec![f32::NAN; batch * m * n]));
+        let c = a.matmul(&b)?.flatten_all()?.to_vec1::<f32>()?;
+        let mut expected = Vec::new();
+        for s in 0..batch {
+            expected.extend(naive(
+                &a_data[s * m * k..(s + 1) * m * k],
+                &b_data[s * k * n..(s + 1) * k * n],
+                m,
+                k,
+                n,
+            ));
+        }
+        assert_eq!(c, expected, "batch {batch}, {m}x{k} by {k}x{n}");
+    }
+    // A batch-invariant right-hand side (the batches stack into one product).
+    let a = Tensor::arange(0f32, 24.0, &Device::Cpu)?.reshape((2, 3, 4))?;
+    let b = Tensor::arange(0f32, 8.0, &Device::Cpu)?.reshape((4, 2))?;
+    drop(std::hint::black_box(vec![f32::NAN; 12]));
+    let c = a.broadcast_matmul(&b)?;
+    let expected = a.reshape((6, 4))?.matmul(&b)?.reshape((2, 3, 2))?;
+    assert_eq!(c.to_vec3::<f32>()?, expected.to_vec3::<f32>()?);
+    // An empty inner dimension: all zeros.
+    let a = Tensor::zeros((3, 0), DType::F32, &Device::Cpu)?;
+    let b = Tensor::zeros((0, 4), DType::F32, &Device::Cpu)?;
+    drop(std::hint::black_box(vec![f32::NAN; 12]));
+    assert_eq!(a.matmul(&b)?.to_vec2::<f32>()?, vec![vec![0.0f32; 4]; 3]);
+    Ok(())
+}

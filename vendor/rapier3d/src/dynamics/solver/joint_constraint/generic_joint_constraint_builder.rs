@@ -122,6 +122,7 @@ impl JointGenericExternalConstraintBuilder {
         let mut masked_data = joint.data;
         super::strip_soft_frame_angular_axes(&mut masked_data, rb1, rb2);
         let num_rows = crate::dynamics::solver::joint_data_num_constraints(&masked_data);
+        let first_row = *j_id;
         let required_jacobian_len = *j_id + multibodies_ndof * 2 * num_rows;
         *j_id += multibodies_ndof * 2 * num_rows;
 
@@ -132,9 +133,7 @@ impl JointGenericExternalConstraintBuilder {
             jacobians.resize_vertically_mut(required_jacobian_len, 0.0);
         }
         // Only the rows this joint reserves start at zero (see `generic_contact_constraint`).
-        jacobians.as_mut_slice()
-            [required_jacobian_len - multibodies_ndof * 2 * num_rows..required_jacobian_len]
-            .fill(0.0);
+        jacobians.as_mut_slice()[first_row..required_jacobian_len].fill(0.0);
 
         let mut joint_data = masked_data;
         // NOTE: multibody links are positioned by `link.local_to_world` which is

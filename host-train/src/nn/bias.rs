@@ -6,33 +6,63 @@
 //! 1,536 rows (`perf`, BENCHMARKS.md). Accumulating whole rows into the `[N]` sum reads the
 //! gradient once, in order, and vectorizes.
 
-use crate::nn::elu::slice as contiguous;
+use crate::nn::elu::{self, slice as contiguous};
+use crate::nn::simd;
 use candle_core::{CpuStorage, CustomOp1, CustomOp2, Layout, Result, Shape, Tensor};
+use rayon::prelude::*;
 
-fn add_rows<T: Copy + std::ops::Add<Output = T>>(x: &[T], b: &[T]) -> Vec<T> {
-    let mut out = Vec::with_capacity(x.len());
-    for row in x.chunks_exact(b.len()) {
-        out.extend(row.iter().zip(b).map(|(&x, &b)| x + b));
-    }
+/// `f(x + b)` for each row `x` of `x`, in parallel blocks of rows, each loop compiled for
+/// the widest vector unit ([`simd`]).
+fn map_rows<T: Copy + Send + Sync + std::ops::Add<Output = T>>(
+    x: &[T],
+    b: &[T],
+    f: impl Fn(T) -> T + Sync,
+) -> Vec<T> {
+    let n = b.len();
+    assert!(
+        n > 0 && x.len().is_multiple_of(n),
+        "rows of {n} in {} elements",
+        x.len()
+    );
+    let block = (elu::CHUNK / n).max(1) * n;
+    let mut out: Vec<T> = Vec::with_capacity(x.len());
+    out.spare_capacity_mut()[..x.len()]
+        .par_chunks_mut(block)
+        .zip(x.par_chunks(block))
+        .for_each(|(o, c)| {
+            simd::widest(simd::MapRows {
+                out: o,
+                x: c,
+                b,
+                f: &f,
+            })
+        });
+    // SAFETY: `x.len()` is a multiple of `n` (asserted above), so the rows above wrote
+    // every one of the first `x.len()` elements.
+    unsafe { out.set_len(x.len()) };
     out
 }
 
+/// The column sums of `g`'s rows of `n`, each column added row after row (the same order
+/// at every vector width).
 fn sum_rows<T: Copy + Default + std::ops::AddAssign>(g: &[T], n: usize) -> Vec<T> {
     let mut acc = vec![T::default(); n];
-    for row in g.chunks_exact(n) {
-        for (a, &x) in acc.iter_mut().zip(row) {
-            *a += x;
-        }
-    }
+    simd::widest(simd::AddRows { acc: &mut acc, g });
     acc
 }
 
-/// `x [B, N] + b [N]`.
-struct BiasAdd;
+/// `x [B, N] + b [N]`, then ELU when `elu` (one pass, no tensor for `x + b`).
+struct BiasAdd {
+    elu: bool,
+}
 
 impl CustomOp2 for BiasAdd {
     fn name(&self) -> &'static str {
-        "bias-add"
+        if self.elu {
+            "bias-add-elu"
+        } else {
+            "bias-add"
+        }
     }
     fn cpu_fwd(
         &self,
@@ -41,23 +71,34 @@ impl CustomOp2 for BiasAdd {
         s2: &CpuStorage,
         l2: &Layout,
     ) -> Result<(CpuStorage, Shape)> {
+        let name = self.name();
         let n = l2.shape().elem_count();
         if l1.dims().len() != 2 || l1.dims()[1] != n || n == 0 {
             return Err(candle_core::Error::Msg(format!(
-                "bias-add: x {:?} against a bias of {n}",
+                "{name}: x {:?} against a bias of {n}",
                 l1.dims()
             )));
         }
         let out = match (s1, s2) {
-            (CpuStorage::F32(x), CpuStorage::F32(b)) => CpuStorage::F32(add_rows(
-                contiguous(x, l1, "bias-add")?,
-                contiguous(b, l2, "bias-add")?,
-            )),
-            (CpuStorage::F64(x), CpuStorage::F64(b)) => CpuStorage::F64(add_rows(
-                contiguous(x, l1, "bias-add")?,
-                contiguous(b, l2, "bias-add")?,
-            )),
-            _ => return Err(candle_core::Error::Msg("bias-add: f32 or f64 only".into())),
+            (CpuStorage::F32(x), CpuStorage::F32(b)) => {
+                let (x, b) = (contiguous(x, l1, name)?, contiguous(b, l2, name)?);
+                CpuStorage::F32(if self.elu {
+                    map_rows(x, b, elu::elu_f32)
+                } else {
+                    map_rows(x, b, |z| z)
+                })
+            }
+            (CpuStorage::F64(x), CpuStorage::F64(b)) => {
+                let (x, b) = (contiguous(x, l1, name)?, contiguous(b, l2, name)?);
+                CpuStorage::F64(if self.elu {
+                    map_rows(x, b, elu::elu_f64)
+                } else {
+                    map_rows(x, b, |z| z)
+                })
+            }
+            _ => {
+                return Err(candle_core::Error::Msg(format!("{name}: f32 or f64 only")));
+            }
         };
         Ok((out, l1.shape().clone()))
     }
@@ -65,10 +106,14 @@ impl CustomOp2 for BiasAdd {
         &self,
         _x: &Tensor,
         _b: &Tensor,
-        _res: &Tensor,
+        res: &Tensor,
         grad: &Tensor,
     ) -> Result<(Option<Tensor>, Option<Tensor>)> {
-        let grad = grad.contiguous()?;
+        let grad = if self.elu {
+            elu::backward_from_output(grad, res)?
+        } else {
+            grad.contiguous()?
+        };
         let sums = grad.apply_op1_no_bwd(&SumRows)?;
         Ok((Some(grad), Some(sums)))
     }
@@ -96,7 +141,15 @@ impl CustomOp1 for SumRows {
 
 /// `x [B, N] + b [N]` (f32 or f64), differentiable in both.
 pub fn add_bias(x: &Tensor, b: &Tensor) -> Result<Tensor> {
-    x.contiguous()?.apply_op2(&b.contiguous()?, BiasAdd)
+    x.contiguous()?
+        .apply_op2(&b.contiguous()?, BiasAdd { elu: false })
+}
+
+/// `elu(x [B, N] + b [N])` in one pass (f32 or f64), differentiable in both; the same bits
+/// as [`add_bias`] followed by [`crate::nn::elu::elu`], without the intermediate tensor.
+pub fn add_bias_elu(x: &Tensor, b: &Tensor) -> Result<Tensor> {
+    x.contiguous()?
+        .apply_op2(&b.contiguous()?, BiasAdd { elu: true })
 }
 
 #[cfg(test)]
@@ -130,5 +183,44 @@ mod tests {
             &Tensor::zeros(2, candle_core::DType::F32, &dev).unwrap()
         )
         .is_err());
+    }
+
+    #[test]
+    fn fused_elu_is_bias_add_then_elu_bit_for_bit() {
+        let dev = Device::Cpu;
+        let (rows, n) = (300, 70); // several parallel blocks
+        let data: Vec<f32> = (0..rows * n)
+            .map(|i| ((i * 7919 % 1013) as f32 - 506.0) * 0.013)
+            .collect();
+        let x = Var::from_vec(data, (rows, n), &dev).unwrap();
+        let b = Var::from_vec(
+            (0..n).map(|j| (j as f32 - 35.0) * 0.05).collect::<Vec<_>>(),
+            n,
+            &dev,
+        )
+        .unwrap();
+        let w = Tensor::from_vec(
+            (0..rows * n)
+                .map(|i| (i % 11) as f32 - 5.0)
+                .collect::<Vec<_>>(),
+            (rows, n),
+            &dev,
+        )
+        .unwrap();
+        let fused = add_bias_elu(x.as_tensor(), b.as_tensor()).unwrap();
+        let apart = crate::nn::elu::elu(&add_bias(x.as_tensor(), b.as_tensor()).unwrap()).unwrap();
+        let bits = |t: &Tensor| -> Vec<u32> {
+            let v = t.flatten_all().unwrap().to_vec1::<f32>().unwrap();
+            v.into_iter().map(f32::to_bits).collect()
+        };
+        assert_eq!(bits(&fused), bits(&apart));
+        let grads = |y: &Tensor| y.mul(&w)?.sum_all()?.backward();
+        let (g1, g2) = (grads(&fused).unwrap(), grads(&apart).unwrap());
+        for v in [&x, &b] {
+            assert_eq!(bits(g1.get(v).unwrap()), bits(g2.get(v).unwrap()));
+        }
+        let wrong = Tensor::zeros(3, candle_core::DType::F32, &dev).unwrap();
+        let err = add_bias_elu(x.as_tensor(), &wrong).unwrap_err().to_string();
+        assert!(err.contains("bias-add-elu"), "{err}");
     }
 }

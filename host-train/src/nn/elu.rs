@@ -7,11 +7,12 @@
 //! derivative `elu'(z) = exp(min(z, 0))` used by the discriminator's explicit input gradient
 //! is one pass with a one-pass backward, so the gradient penalty stays exact.
 
+use crate::nn::simd::{self, Level};
 use candle_core::{CpuStorage, CustomOp1, CustomOp2, Layout, Result, Shape, Tensor};
 use rayon::prelude::*;
 
 /// Elements per parallel chunk.
-const CHUNK: usize = 1 << 15;
+pub(crate) const CHUNK: usize = 1 << 15;
 
 /// The elements of a contiguous input (an error naming `op` otherwise).
 pub(crate) fn slice<'a, T>(data: &'a [T], layout: &Layout, op: &str) -> Result<&'a [T]> {
@@ -23,16 +24,27 @@ pub(crate) fn slice<'a, T>(data: &'a [T], layout: &Layout, op: &str) -> Result<&
     }
 }
 
-/// `f` over `x`, in parallel chunks, each a plain loop the compiler vectorizes.
+/// `f` over `x`, in parallel chunks, each a plain loop the compiler vectorizes for the
+/// widest vector unit the CPU has ([`simd`]).
 fn map1<T: Copy + Send + Sync>(x: &[T], f: impl Fn(T) -> T + Sync) -> Vec<T> {
+    map1_at(Level::detected(), x, f)
+}
+
+/// [`map1`] with the loops compiled for `level`.
+fn map1_at<T: Copy + Send + Sync>(level: Level, x: &[T], f: impl Fn(T) -> T + Sync) -> Vec<T> {
     let mut out: Vec<T> = Vec::with_capacity(x.len());
     out.spare_capacity_mut()[..x.len()]
         .par_chunks_mut(CHUNK)
         .zip(x.par_chunks(CHUNK))
         .for_each(|(o, c)| {
-            for (o, &v) in o.iter_mut().zip(c) {
-                o.write(f(v));
-            }
+            simd::at(
+                level,
+                simd::Map1 {
+                    out: o,
+                    x: c,
+                    f: &f,
+                },
+            )
         });
     // SAFETY: the loop above wrote every one of the first `x.len()` elements.
     unsafe { out.set_len(x.len()) };
@@ -41,15 +53,31 @@ fn map1<T: Copy + Send + Sync>(x: &[T], f: impl Fn(T) -> T + Sync) -> Vec<T> {
 
 /// `f` over `a` and `b` element by element, as `map1`.
 fn map2<T: Copy + Send + Sync>(a: &[T], b: &[T], f: impl Fn(T, T) -> T + Sync) -> Vec<T> {
+    map2_at(Level::detected(), a, b, f)
+}
+
+/// [`map2`] with the loops compiled for `level`.
+fn map2_at<T: Copy + Send + Sync>(
+    level: Level,
+    a: &[T],
+    b: &[T],
+    f: impl Fn(T, T) -> T + Sync,
+) -> Vec<T> {
     assert_eq!(a.len(), b.len());
     let mut out: Vec<T> = Vec::with_capacity(a.len());
     out.spare_capacity_mut()[..a.len()]
         .par_chunks_mut(CHUNK)
         .zip(a.par_chunks(CHUNK).zip(b.par_chunks(CHUNK)))
         .for_each(|(o, (ca, cb))| {
-            for ((o, &x), &y) in o.iter_mut().zip(ca).zip(cb) {
-                o.write(f(x, y));
-            }
+            simd::at(
+                level,
+                simd::Map2 {
+                    out: o,
+                    a: ca,
+                    b: cb,
+                    f: &f,
+                },
+            )
         });
     // SAFETY: the loop above wrote every one of the first `a.len()` elements.
     unsafe { out.set_len(a.len()) };
@@ -59,15 +87,18 @@ fn map2<T: Copy + Send + Sync>(a: &[T], b: &[T], f: impl Fn(T, T) -> T + Sync) -
 /// `exp(x) - 1` for `x <= 0` in f32, branch-free so that the element loops vectorize (libm's
 /// `expm1f` is a scalar call per element, which made ELU a sixth of a PPO step): `x = n ln 2
 /// + r` with `|r| <= ln 2 / 2` (Cody-Waite, two-part `ln 2`), `e^r - 1` by its Taylor
-/// polynomial to degree 8 (truncation below 1e-9), then `2^n (e^r - 1) + (2^n - 1)`.
-/// Relative error within 3e-7 of libm (tested); `x < -87` gives -1.
+/// polynomial to degree 8 (truncation below 1e-9), then `2^n (e^r - 1) + (2^n - 1)`, with
+/// `2^n` built from the rounding sum's bits in integer lanes (a float-to-int conversion
+/// would be scalar per element on the baseline target). Relative error within 3e-7 of libm
+/// (tested); `x < -87` gives -1.
 #[inline(always)]
 pub fn expm1_nonpositive_f32(x: f32) -> f32 {
     const LN2_HI: f32 = 0.693_145_75;
     const LN2_LO: f32 = 1.428_606_8e-6;
     const ROUND: f32 = 12_582_912.0; // 1.5 * 2^23: adding it rounds to an integer.
     let x = x.clamp(-87.0, 0.0);
-    let n = (x * std::f32::consts::LOG2_E + ROUND) - ROUND;
+    let t = x * std::f32::consts::LOG2_E + ROUND; // ROUND + n, n = round(x / ln 2)
+    let n = t - ROUND;
     let r = (x - n * LN2_HI) - n * LN2_LO;
     // e^r - 1 = r + r^2/2! + ... + r^8/8!, Horner.
     let p = r
@@ -77,8 +108,61 @@ pub fn expm1_nonpositive_f32(x: f32) -> f32 {
                     + r * (1.0 / 24.0
                         + r * (1.0 / 120.0
                             + r * (1.0 / 720.0 + r * (1.0 / 5040.0 + r * (1.0 / 40320.0))))))));
-    let two_n = f32::from_bits(((n as i32 + 127) << 23) as u32);
+    // t in [2^23, 2^24) has a unit ulp, so its bits are ROUND's plus n (-126 <= n <= 0):
+    // 2^n is the exponent field n + 127 (1..=127, a normal number).
+    let biased = t.to_bits().wrapping_sub(ROUND.to_bits()).wrapping_add(127);
+    let two_n = f32::from_bits(biased << 23);
     two_n * p + (two_n - 1.0)
+}
+
+/// `elu(x)`.
+#[inline(always)]
+pub(crate) fn elu_f32(x: f32) -> f32 {
+    if x > 0.0 {
+        x
+    } else {
+        expm1_nonpositive_f32(x)
+    }
+}
+
+/// `g * elu'(x)` from the output `y = elu(x)`.
+#[inline(always)]
+fn elu_backward_f32(g: f32, y: f32) -> f32 {
+    if y > 0.0 {
+        g
+    } else {
+        g * (y + 1.0)
+    }
+}
+
+/// `elu(x)` in f64.
+#[inline(always)]
+pub(crate) fn elu_f64(x: f64) -> f64 {
+    if x > 0.0 {
+        x
+    } else {
+        x.exp_m1()
+    }
+}
+
+/// `elu'(z)`.
+#[inline(always)]
+fn elu_derivative_f32(z: f32) -> f32 {
+    if z > 0.0 {
+        1.0
+    } else {
+        expm1_nonpositive_f32(z) + 1.0
+    }
+}
+
+/// `g * elu''(z)`.
+#[inline(always)]
+fn elu_derivative_backward_f32(g: f32, z: f32) -> f32 {
+    if z > 0.0 {
+        0.0
+    } else {
+        g * (expm1_nonpositive_f32(z) + 1.0)
+    }
 }
 
 macro_rules! unary_cpu {
@@ -135,21 +219,17 @@ impl CustomOp1 for Elu {
         "fused-elu"
     }
     fn cpu_fwd(&self, storage: &CpuStorage, layout: &Layout) -> Result<(CpuStorage, Shape)> {
-        unary_cpu!(
-            storage,
-            layout,
-            "fused-elu",
-            |x: f32| if x > 0.0 { x } else { expm1_nonpositive_f32(x) },
-            |x: f64| if x > 0.0 { x } else { x.exp_m1() }
-        )
+        unary_cpu!(storage, layout, "fused-elu", elu_f32, elu_f64)
     }
     fn bwd(&self, _arg: &Tensor, res: &Tensor, grad_res: &Tensor) -> Result<Option<Tensor>> {
-        Ok(Some(
-            grad_res
-                .contiguous()?
-                .apply_op2_no_bwd(&res.contiguous()?, &EluBackward)?,
-        ))
+        Ok(Some(backward_from_output(grad_res, res)?))
     }
+}
+
+/// The gradient through an ELU, `g * elu'(x)`, from its output `y`.
+pub(crate) fn backward_from_output(g: &Tensor, y: &Tensor) -> Result<Tensor> {
+    g.contiguous()?
+        .apply_op2_no_bwd(&y.contiguous()?, &EluBackward)
 }
 
 /// `g * elu'(x)` from the output `y`: `g` where `y > 0`, `g * (y + 1)` elsewhere.
@@ -172,7 +252,7 @@ impl CustomOp2 for EluBackward {
             s2,
             l2,
             "fused-elu-backward",
-            |g: f32, y: f32| if y > 0.0 { g } else { g * (y + 1.0) },
+            elu_backward_f32,
             |g: f64, y: f64| if y > 0.0 { g } else { g * (y + 1.0) }
         )
     }
@@ -190,11 +270,7 @@ impl CustomOp1 for EluDerivative {
             storage,
             layout,
             "elu-derivative",
-            |z: f32| if z > 0.0 {
-                1.0
-            } else {
-                expm1_nonpositive_f32(z) + 1.0
-            },
+            elu_derivative_f32,
             |z: f64| if z > 0.0 { 1.0 } else { z.exp() }
         )
     }
@@ -226,11 +302,7 @@ impl CustomOp2 for EluDerivativeBackward {
             s2,
             l2,
             "elu-derivative-backward",
-            |g: f32, z: f32| if z > 0.0 {
-                0.0
-            } else {
-                g * (expm1_nonpositive_f32(z) + 1.0)
-            },
+            elu_derivative_backward_f32,
             |g: f64, z: f64| if z > 0.0 { 0.0 } else { g * z.exp() }
         )
     }
@@ -267,6 +339,78 @@ mod tests {
         assert_eq!(expm1_nonpositive_f32(0.0), 0.0);
         assert_eq!(expm1_nonpositive_f32(-200.0), -1.0);
         assert_eq!(expm1_nonpositive_f32(f32::NEG_INFINITY), -1.0);
+    }
+
+    /// The function as it was before `2^n` came from the rounding sum's bits: `n as i32`
+    /// (a scalar conversion per element on the baseline target).
+    fn expm1_by_conversion(x: f32) -> f32 {
+        const ROUND: f32 = 12_582_912.0;
+        let x = x.clamp(-87.0, 0.0);
+        let n = (x * std::f32::consts::LOG2_E + ROUND) - ROUND;
+        let r = (x - n * 0.693_145_75) - n * 1.428_606_8e-6;
+        let p = r
+            * (1.0
+                + r * (1.0 / 2.0
+                    + r * (1.0 / 6.0
+                        + r * (1.0 / 24.0
+                            + r * (1.0 / 120.0
+                                + r * (1.0 / 720.0 + r * (1.0 / 5040.0 + r * (1.0 / 40320.0))))))));
+        let two_n = f32::from_bits(((n as i32 + 127) << 23) as u32);
+        two_n * p + (two_n - 1.0)
+    }
+
+    /// Inputs over the ELUs' working range, negative ones dense, plus the edges.
+    fn inputs() -> Vec<f32> {
+        let mut x: Vec<f32> = (0..100_003)
+            .map(|i| {
+                let u = ((i as u64 * 2_654_435_761) % 1_000_003) as f32 / 1_000_003.0;
+                -90.0 * u * u * u + if i % 3 == 0 { 5.0 * u } else { 0.0 }
+            })
+            .collect();
+        x.extend([
+            0.0,
+            -0.0,
+            -87.0,
+            -87.5,
+            -1e-30,
+            1e-30,
+            f32::NEG_INFINITY,
+            3.0,
+        ]);
+        x
+    }
+
+    #[test]
+    fn two_to_the_n_from_bits_is_the_conversion() {
+        for &x in &inputs() {
+            let (got, was) = (expm1_nonpositive_f32(x), expm1_by_conversion(x));
+            assert_eq!(got.to_bits(), was.to_bits(), "x {x}: {got} against {was}");
+        }
+    }
+
+    #[test]
+    fn every_vector_level_gives_the_same_bits() {
+        let x = inputs();
+        let g: Vec<f32> = x.iter().map(|v| 0.37 - v * 0.01).collect();
+        let bits = |v: Vec<f32>| v.into_iter().map(f32::to_bits).collect::<Vec<_>>();
+        let scalar1 = |f: fn(f32) -> f32| bits(x.iter().map(|&v| f(v)).collect());
+        let scalar2 =
+            |f: fn(f32, f32) -> f32| bits(g.iter().zip(&x).map(|(&a, &b)| f(a, b)).collect());
+        let expect = [
+            scalar1(elu_f32),
+            scalar1(elu_derivative_f32),
+            scalar2(elu_backward_f32),
+            scalar2(elu_derivative_backward_f32),
+        ];
+        for level in Level::available() {
+            let got = [
+                bits(map1_at(level, &x, elu_f32)),
+                bits(map1_at(level, &x, elu_derivative_f32)),
+                bits(map2_at(level, &g, &x, elu_backward_f32)),
+                bits(map2_at(level, &g, &x, elu_derivative_backward_f32)),
+            ];
+            assert!(got == expect, "{level:?} differs from the scalar loop");
+        }
     }
 
     #[test]

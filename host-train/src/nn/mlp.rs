@@ -29,6 +29,16 @@ fn linear(layer: &Linear, x: &Tensor) -> Result<Tensor> {
     }
 }
 
+/// `elu(x W^T + b)`, the bias and the ELU in one pass
+/// ([`crate::nn::bias::add_bias_elu`]; the same bits as [`linear`] then ELU).
+fn linear_elu(layer: &Linear, x: &Tensor) -> Result<Tensor> {
+    let y = x.matmul(&layer.weight().t()?)?;
+    match layer.bias() {
+        Some(b) => crate::nn::bias::add_bias_elu(&y, b),
+        None => crate::nn::elu::elu(&y),
+    }
+}
+
 /// A multilayer perceptron: `Linear -> ELU -> ... -> Linear`.
 #[derive(Clone, Debug)]
 pub struct Mlp {
@@ -65,15 +75,16 @@ impl Mlp {
         self.layers[self.layers.len() - 1].weight().dims()[0]
     }
 
-    /// Forward pass `[B, in] -> [B, out]`.
+    /// Forward pass `[B, in] -> [B, out]` (each hidden layer's bias and ELU in one pass).
     pub fn forward(&self, x: &Tensor) -> Result<Tensor> {
         let mut h = x.clone();
         let last = self.layers.len() - 1;
         for (k, layer) in self.layers.iter().enumerate() {
-            h = linear(layer, &h)?;
-            if k < last {
-                h = crate::nn::elu::elu(&h)?;
-            }
+            h = if k < last {
+                linear_elu(layer, &h)?
+            } else {
+                linear(layer, &h)?
+            };
         }
         Ok(h)
     }

@@ -5,3 +5,4 @@ pub mod bias;
 pub mod elu;
 pub mod mlp;
 pub mod normalizer;
+pub(crate) mod simd;

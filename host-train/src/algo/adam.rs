@@ -1,6 +1,7 @@
 //! Adam with named state (saved with checkpoints for resume) and global gradient-norm
 //! clipping, as `torch.optim.Adam` + `clip_grad_norm_` in rsl_rl.
 
+use crate::nn::simd;
 use candle_core::backprop::GradStore;
 use candle_core::{Result, Tensor, Var};
 use candle_nn::VarMap;
@@ -82,6 +83,11 @@ impl Adam {
     /// One Adam step; gradients are scaled so that their global norm is at most `max_norm`
     /// (no clipping when `None`). Returns the norm before clipping.
     pub fn step(&mut self, grads: &GradStore, max_norm: Option<f64>) -> Result<f64> {
+        self.step_with(grads, max_norm, true)
+    }
+
+    /// [`Adam::step`], one pass per f32 tensor when `fused`, else candle op by op.
+    fn step_with(&mut self, grads: &GradStore, max_norm: Option<f64>, fused: bool) -> Result<f64> {
         let norm = self.grad_norm(grads)?;
         let scale = match max_norm {
             Some(max) if norm > max => max / (norm + 1e-6),
@@ -92,31 +98,220 @@ impl Adam {
         let bias1 = 1.0 - self.beta1.powi(t);
         let bias2 = 1.0 - self.beta2.powi(t);
         let step_size = self.lr / bias1;
+        let constants = Constants {
+            scale,
+            decay: 0.0,
+            beta1: self.beta1,
+            beta2: self.beta2,
+            bias2,
+            eps: self.eps,
+            step_size,
+        };
         for s in &self.slots {
             let Some(g) = grads.get(s.var.as_tensor()) else {
                 continue;
             };
-            let g = if scale != 1.0 {
-                (g * scale)?
-            } else {
-                g.clone()
+            let constants = Constants {
+                decay: s.weight_decay,
+                ..constants
             };
-            let g = if s.weight_decay != 0.0 {
-                (g + (s.var.as_tensor() * s.weight_decay)?)?
-            } else {
-                g
-            };
-            let m = ((s.m.as_tensor() * self.beta1)? + (&g * (1.0 - self.beta1))?)?;
-            let v = ((s.v.as_tensor() * self.beta2)? + (g.sqr()? * (1.0 - self.beta2))?)?;
-            let denom = ((&v / bias2)?.sqrt()? + self.eps)?;
-            let update = ((&m / &denom)? * step_size)?;
-            s.var.set(&s.var.as_tensor().sub(&update)?)?;
-            s.m.set(&m)?;
-            s.v.set(&v)?;
+            if !(fused && fused_step(s, g, &constants)?) {
+                op_by_op_step(s, g, &constants)?;
+            }
         }
         Ok(norm)
     }
+}
 
+/// The scalars of one Adam step.
+#[derive(Clone, Copy)]
+struct Constants {
+    /// Gradient scale from the norm clipping (1 when not clipped).
+    scale: f64,
+    /// L2 weight decay.
+    decay: f64,
+    beta1: f64,
+    beta2: f64,
+    /// `1 - beta2^t`.
+    bias2: f64,
+    eps: f64,
+    /// `lr / (1 - beta1^t)`.
+    step_size: f64,
+}
+
+/// The step as candle tensor operations, one allocating pass each (any dtype or layout).
+fn op_by_op_step(s: &Slot, g: &Tensor, c: &Constants) -> Result<()> {
+    let g = if c.scale != 1.0 {
+        (g * c.scale)?
+    } else {
+        g.clone()
+    };
+    let g = if c.decay != 0.0 {
+        (g + (s.var.as_tensor() * c.decay)?)?
+    } else {
+        g
+    };
+    let m = ((s.m.as_tensor() * c.beta1)? + (&g * (1.0 - c.beta1))?)?;
+    let v = ((s.v.as_tensor() * c.beta2)? + (g.sqr()? * (1.0 - c.beta2))?)?;
+    let denom = ((&v / c.bias2)?.sqrt()? + c.eps)?;
+    let update = ((&m / &denom)? * c.step_size)?;
+    s.var.set(&s.var.as_tensor().sub(&update)?)?;
+    s.m.set(&m)?;
+    s.v.set(&v)?;
+    Ok(())
+}
+
+/// The step in one pass over the f32 variable, gradient and moments, bit for bit what
+/// [`op_by_op_step`] computes: each scalar enters as candle's `Tensor * f64` does (an affine
+/// map `x * (c as f32) + 0`, `x / c` as `x * (1 / c)`, `x + c` as `x * 1 + c`), in the same
+/// order. Returns false (nothing done) for other dtypes or non-contiguous tensors.
+fn fused_step(s: &Slot, g: &Tensor, c: &Constants) -> Result<bool> {
+    let slices = (
+        f32_slice(s.var.as_tensor()),
+        f32_slice(g),
+        f32_slice(s.m.as_tensor()),
+        f32_slice(s.v.as_tensor()),
+    );
+    let (Some(w), Some(g), Some(m), Some(v)) = slices else {
+        return Ok(false);
+    };
+    let n = w.len();
+    if g.len() != n || m.len() != n || v.len() != n {
+        return Ok(false);
+    }
+    let (mut w_new, mut m_new, mut v_new) = (
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+    );
+    simd::widest(AdamLoop {
+        w: &w,
+        g: &g,
+        m: &m,
+        v: &v,
+        w_out: &mut w_new.spare_capacity_mut()[..n],
+        m_out: &mut m_new.spare_capacity_mut()[..n],
+        v_out: &mut v_new.spare_capacity_mut()[..n],
+        c: ElementConstants::new(c),
+    });
+    // SAFETY: the loop wrote the first `n` elements of each.
+    unsafe {
+        w_new.set_len(n);
+        m_new.set_len(n);
+        v_new.set_len(n);
+    }
+    drop((w, g, m, v));
+    let shape = s.var.shape().clone();
+    let dev = s.var.device().clone();
+    s.var.set(&Tensor::from_vec(w_new, shape.clone(), &dev)?)?;
+    s.m.set(&Tensor::from_vec(m_new, shape.clone(), &dev)?)?;
+    s.v.set(&Tensor::from_vec(v_new, shape, &dev)?)?;
+    Ok(true)
+}
+
+/// A read guard on a contiguous f32 tensor's elements, `None` for anything else.
+fn f32_slice(
+    t: &Tensor,
+) -> Option<F32Slice<impl std::ops::Deref<Target = candle_core::Storage> + '_>> {
+    let (storage, layout) = t.storage_and_layout();
+    let (start, end) = layout.contiguous_offsets()?;
+    match &*storage {
+        candle_core::Storage::Cpu(candle_core::CpuStorage::F32(_)) => {}
+        _ => return None,
+    }
+    Some(F32Slice {
+        storage,
+        start,
+        end,
+    })
+}
+
+/// A contiguous f32 tensor's elements, held under its storage's read lock.
+struct F32Slice<G> {
+    storage: G,
+    start: usize,
+    end: usize,
+}
+
+impl<G: std::ops::Deref<Target = candle_core::Storage>> std::ops::Deref for F32Slice<G> {
+    type Target = [f32];
+    fn deref(&self) -> &[f32] {
+        match &*self.storage {
+            candle_core::Storage::Cpu(candle_core::CpuStorage::F32(v)) => &v[self.start..self.end],
+            _ => unreachable!("checked in f32_slice"),
+        }
+    }
+}
+
+/// [`Constants`] as the f32 factors candle's affine maps use.
+#[derive(Clone, Copy)]
+struct ElementConstants {
+    scale: Option<f32>,
+    decay: Option<f32>,
+    beta1: f32,
+    one_minus_beta1: f32,
+    beta2: f32,
+    one_minus_beta2: f32,
+    inv_bias2: f32,
+    eps: f32,
+    step_size: f32,
+}
+
+impl ElementConstants {
+    fn new(c: &Constants) -> Self {
+        Self {
+            scale: (c.scale != 1.0).then_some(c.scale as f32),
+            decay: (c.decay != 0.0).then_some(c.decay as f32),
+            beta1: c.beta1 as f32,
+            one_minus_beta1: (1.0 - c.beta1) as f32,
+            beta2: c.beta2 as f32,
+            one_minus_beta2: (1.0 - c.beta2) as f32,
+            inv_bias2: (1.0 / c.bias2) as f32,
+            eps: c.eps as f32,
+            step_size: c.step_size as f32,
+        }
+    }
+}
+
+/// The fused step's loop (compiled for the CPU's vector width, [`simd`]).
+struct AdamLoop<'a> {
+    w: &'a [f32],
+    g: &'a [f32],
+    m: &'a [f32],
+    v: &'a [f32],
+    w_out: &'a mut [std::mem::MaybeUninit<f32>],
+    m_out: &'a mut [std::mem::MaybeUninit<f32>],
+    v_out: &'a mut [std::mem::MaybeUninit<f32>],
+    c: ElementConstants,
+}
+
+impl simd::Loop for AdamLoop<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run(self) {
+        let c = self.c;
+        for i in 0..self.w.len() {
+            let (w, g, m, v) = (self.w[i], self.g[i], self.m[i], self.v[i]);
+            let g = match c.scale {
+                Some(s) => g * s + 0.0,
+                None => g,
+            };
+            let g = match c.decay {
+                Some(d) => g + (w * d + 0.0),
+                None => g,
+            };
+            let m = (m * c.beta1 + 0.0) + (g * c.one_minus_beta1 + 0.0);
+            let v = (v * c.beta2 + 0.0) + ((g * g) * c.one_minus_beta2 + 0.0);
+            let denom = (v * c.inv_bias2 + 0.0).sqrt() * 1.0 + c.eps;
+            let update = (m / denom) * c.step_size + 0.0;
+            self.w_out[i].write(w - update);
+            self.m_out[i].write(m);
+            self.v_out[i].write(v);
+        }
+    }
+}
+
+impl Adam {
     /// Optimizer state as named tensors, `<prefix>.<var>.m|v` and `<prefix>.step`.
     pub fn state(&self, prefix: &str) -> Result<Vec<(String, Tensor)>> {
         let mut out = Vec::with_capacity(2 * self.slots.len() + 2);
@@ -273,5 +468,52 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn fused_steps_are_the_op_by_op_steps_bit_for_bit() {
+        let init = |seed: u64| {
+            let map = VarMap::new();
+            let vb = VarBuilder::from_varmap(&map, DType::F32, &Device::Cpu);
+            let data: Vec<f32> = (0..1_003u64)
+                .map(|i| ((i * 2_654_435_761 + seed) % 10_007) as f32 / 5_003.0 - 1.0)
+                .collect();
+            let init = Tensor::from_vec(data, (17, 59), &Device::Cpu).unwrap();
+            let w = vb.get_with_hints((17, 59), "w", Init::Const(0.0)).unwrap();
+            let b = vb.get_with_hints(59, "b", Init::Const(0.25)).unwrap();
+            map.data().lock().unwrap()["w"].set(&init).unwrap();
+            (map, w, b)
+        };
+        let (map_a, w_a, b_a) = init(7);
+        let (map_b, w_b, b_b) = init(7);
+        let decay = |name: &str| if name == "w" { 0.01 } else { 0.0 };
+        let mut fused = Adam::new(&map_a, 0.003).unwrap().with_weight_decay(decay);
+        let mut ops = Adam::new(&map_b, 0.003).unwrap().with_weight_decay(decay);
+        let bits = |t: &Tensor| -> Vec<u32> {
+            let v = t.flatten_all().unwrap().to_vec1::<f32>().unwrap();
+            v.into_iter().map(f32::to_bits).collect()
+        };
+        let loss = |w: &Tensor, b: &Tensor| -> GradStore {
+            let y = w.broadcast_add(b).unwrap();
+            (y.sqr().unwrap() - y.sin().unwrap() * 3.0)
+                .unwrap()
+                .sum_all()
+                .unwrap()
+                .backward()
+                .unwrap()
+        };
+        for step in 0..5 {
+            let max_norm = if step % 2 == 0 { Some(1.0) } else { None };
+            let (ga, gb) = (loss(&w_a, &b_a), loss(&w_b, &b_b));
+            let na = fused.step_with(&ga, max_norm, true).unwrap();
+            let nb = ops.step_with(&gb, max_norm, false).unwrap();
+            assert_eq!(na.to_bits(), nb.to_bits(), "step {step}: norm");
+            for (a, b) in fused.slots.iter().zip(&ops.slots) {
+                assert_eq!(bits(&a.var), bits(&b.var), "step {step}: {}", a.name);
+                assert_eq!(bits(&a.m), bits(&b.m), "step {step}: {} m", a.name);
+                assert_eq!(bits(&a.v), bits(&b.v), "step {step}: {} v", a.name);
+            }
+        }
+        assert_ne!(bits(&w_a), bits(&init(7).1), "the weights moved");
     }
 }

@@ -308,6 +308,56 @@ impl CustomOp2 for EluDerivativeBackward {
     }
 }
 
+/// `g * elu'(z)`: the input gradient's step through a hidden layer, one pass instead of
+/// [`elu_derivative`] and a product.
+struct TimesEluDerivative;
+
+impl CustomOp2 for TimesEluDerivative {
+    fn name(&self) -> &'static str {
+        "times-elu-derivative"
+    }
+    fn cpu_fwd(
+        &self,
+        s1: &CpuStorage,
+        l1: &Layout,
+        s2: &CpuStorage,
+        l2: &Layout,
+    ) -> Result<(CpuStorage, Shape)> {
+        binary_cpu!(
+            s1,
+            l1,
+            s2,
+            l2,
+            "times-elu-derivative",
+            |g: f32, z: f32| g * elu_derivative_f32(z),
+            |g: f64, z: f64| g * if z > 0.0 { 1.0 } else { z.exp() }
+        )
+    }
+    /// `d/dg = u * elu'(z)` (this op again), `d/dz = (u * g) * elu''(z)`: the bits of the
+    /// product's and [`EluDerivative`]'s backward passes.
+    fn bwd(
+        &self,
+        g: &Tensor,
+        z: &Tensor,
+        _res: &Tensor,
+        grad_res: &Tensor,
+    ) -> Result<(Option<Tensor>, Option<Tensor>)> {
+        let (u, z) = (grad_res.contiguous()?, z.contiguous()?);
+        let grad_g = u.apply_op2_no_bwd(&z, &TimesEluDerivative)?;
+        let grad_z = u
+            .mul(&g.contiguous()?)?
+            .apply_op2_no_bwd(&z, &EluDerivativeBackward)?;
+        Ok((Some(grad_g), Some(grad_z)))
+    }
+}
+
+/// `g * elu'(z)` (same shapes, f32 or f64), differentiable in both; the same bits as
+/// `g.mul(&elu_derivative(z))`.
+pub fn times_elu_derivative(g: &Tensor, z: &Tensor) -> Result<Tensor> {
+    g.contiguous()?
+        .apply_op2(&z.contiguous()?, TimesEluDerivative)
+}
+
 /// Fused ELU (alpha 1) with a one-pass backward.
 pub fn elu(x: &Tensor) -> Result<Tensor> {
     x.contiguous()?.apply_op1(Elu)
@@ -484,5 +534,37 @@ mod tests {
             .max_all()
             .unwrap();
         assert!(d.to_scalar::<f64>().unwrap() < 1e-12);
+    }
+
+    #[test]
+    fn times_elu_derivative_is_the_product_bit_for_bit() {
+        let dev = Device::Cpu;
+        let n = 40_000; // two parallel chunks
+        let z: Vec<f32> = (0..n)
+            .map(|i| ((i * 7919 % 2003) as f32 - 1200.0) * 0.01)
+            .collect();
+        let g: Vec<f32> = (0..n)
+            .map(|i| ((i * 31 % 97) as f32 - 48.0) * 0.1)
+            .collect();
+        let z = Var::from_vec(z, (200, 200), &dev).unwrap();
+        let g = Var::from_vec(g, (200, 200), &dev).unwrap();
+        let w = Tensor::from_vec(
+            (0..n).map(|i| (i % 13) as f32 - 6.0).collect::<Vec<_>>(),
+            (200, 200),
+            &dev,
+        )
+        .unwrap();
+        let fused = times_elu_derivative(g.as_tensor(), z.as_tensor()).unwrap();
+        let apart = g.mul(&elu_derivative(z.as_tensor()).unwrap()).unwrap();
+        let bits = |t: &Tensor| -> Vec<u32> {
+            let v = t.flatten_all().unwrap().to_vec1::<f32>().unwrap();
+            v.into_iter().map(f32::to_bits).collect()
+        };
+        assert_eq!(bits(&fused), bits(&apart));
+        let grads = |y: &Tensor| y.mul(&w)?.sum_all()?.backward();
+        let (g1, g2) = (grads(&fused).unwrap(), grads(&apart).unwrap());
+        for v in [&g, &z] {
+            assert_eq!(bits(g1.get(v).unwrap()), bits(g2.get(v).unwrap()));
+        }
     }
 }

@@ -129,8 +129,8 @@ impl Mlp {
         let folded = self.layers[n - 2].weight().broadcast_mul(&w_last)?; // [H, in]
         let mut g = crate::nn::elu::elu_derivative(&preactivations[n - 2])?.matmul(&folded)?;
         for k in (0..n - 2).rev() {
-            let dz = crate::nn::elu::elu_derivative(&preactivations[k])?;
-            g = g.mul(&dz)?.matmul(self.layers[k].weight())?; // [B, in_k]
+            g = crate::nn::elu::times_elu_derivative(&g, &preactivations[k])?
+                .matmul(self.layers[k].weight())?; // [B, in_k]
         }
         Ok(g)
     }

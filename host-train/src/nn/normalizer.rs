@@ -3,7 +3,9 @@
 //! already includes the epsilon. The statistics live in variables `normalizer.<name>.mean|std`
 //! (and `.count`), so the exported checkpoint carries them.
 
-use candle_core::{DType, Device, Result, Tensor, Var};
+use crate::nn::elu::slice as contiguous;
+use crate::nn::simd;
+use candle_core::{CpuStorage, CustomOp3, DType, Device, Layout, Result, Shape, Tensor, Var};
 use candle_nn::VarMap;
 
 /// Added to the standard deviation (rsl_rl's default).
@@ -138,9 +140,64 @@ impl EmpiricalNormalizer {
     /// variables, which no optimizer trains), so normalized data tracks no gradient and
     /// the backward pass neither differentiates the normalization nor forms the input
     /// gradient of the first layer it feeds.
+    ///
+    /// Data that tracks no gradient (observations, as the trainer feeds them) is normalized
+    /// in one pass ([`NormalizeRows`]); anything else by candle's broadcast operations, which
+    /// the one pass equals bit for bit (tested).
     pub fn normalize(&self, x: &Tensor) -> Result<Tensor> {
-        x.broadcast_sub(&self.mean_var.as_tensor().detach())?
-            .broadcast_div(&self.std_var.as_tensor().detach())
+        let (mean, std) = (self.mean_var.as_tensor(), self.std_var.as_tensor());
+        let x = x.contiguous()?;
+        if !x.track_op() && x.dtype() == DType::F32 && x.dims().len() == 2 {
+            return x.apply_op3_no_bwd(mean, std, &NormalizeRows);
+        }
+        x.broadcast_sub(&mean.detach())?
+            .broadcast_div(&std.detach())
+    }
+}
+
+/// `(x [B, N] - mean [N]) / std [N]` in one pass (f32; no gradient).
+struct NormalizeRows;
+
+impl CustomOp3 for NormalizeRows {
+    fn name(&self) -> &'static str {
+        "normalize-rows"
+    }
+    fn cpu_fwd(
+        &self,
+        s1: &CpuStorage,
+        l1: &Layout,
+        s2: &CpuStorage,
+        l2: &Layout,
+        s3: &CpuStorage,
+        l3: &Layout,
+    ) -> Result<(CpuStorage, Shape)> {
+        let name = self.name();
+        let n = l2.shape().elem_count();
+        if l1.dims().len() != 2 || l1.dims()[1] != n || l3.shape().elem_count() != n || n == 0 {
+            return Err(candle_core::Error::Msg(format!(
+                "{name}: x {:?} against statistics of {n} and {}",
+                l1.dims(),
+                l3.shape().elem_count()
+            )));
+        }
+        let (CpuStorage::F32(x), CpuStorage::F32(mean), CpuStorage::F32(std)) = (s1, s2, s3) else {
+            return Err(candle_core::Error::Msg(format!("{name}: f32 only")));
+        };
+        let (x, mean, std) = (
+            contiguous(x, l1, name)?,
+            contiguous(mean, l2, name)?,
+            contiguous(std, l3, name)?,
+        );
+        let mut out: Vec<f32> = Vec::with_capacity(x.len());
+        simd::widest(simd::NormalizeRows {
+            out: &mut out.spare_capacity_mut()[..x.len()],
+            x,
+            mean,
+            std,
+        });
+        // SAFETY: `x` is whole rows of `n` (checked above), each element written by the loop.
+        unsafe { out.set_len(x.len()) };
+        Ok((CpuStorage::F32(out), l1.shape().clone()))
     }
 }
 
@@ -181,5 +238,38 @@ mod tests {
         let n = EmpiricalNormalizer::new(&map, "x", 2, &Device::Cpu).unwrap();
         let x = Tensor::ones((3, 2), DType::F32, &Device::Cpu).unwrap();
         assert!(!n.normalize(&x).unwrap().track_op());
+    }
+
+    #[test]
+    fn one_pass_normalization_is_candles_bit_for_bit() {
+        let map = VarMap::new();
+        let mut n = EmpiricalNormalizer::new(&map, "x", 37, &Device::Cpu).unwrap();
+        let data: Vec<f32> = (0..37 * 300)
+            .map(|i| ((i * 7919 % 1009) as f32 - 400.0) * 0.013 + (i % 37) as f32)
+            .collect();
+        n.update(&data).unwrap();
+        let x = Tensor::from_vec(data, (300, 37), &Device::Cpu).unwrap();
+        let fused = n.normalize(&x).unwrap();
+        let reference = x
+            .broadcast_sub(n.mean_var.as_tensor())
+            .unwrap()
+            .broadcast_div(n.std_var.as_tensor())
+            .unwrap();
+        let bits = |t: &Tensor| -> Vec<u32> {
+            let v = t.flatten_all().unwrap().to_vec1::<f32>().unwrap();
+            v.into_iter().map(f32::to_bits).collect()
+        };
+        assert_eq!(bits(&fused), bits(&reference));
+        assert!(!fused.track_op());
+        // A tensor that tracks gradients keeps them through the normalization.
+        let v = candle_core::Var::from_tensor(&x).unwrap();
+        let g = n
+            .normalize(v.as_tensor())
+            .unwrap()
+            .sum_all()
+            .unwrap()
+            .backward()
+            .unwrap();
+        assert!(g.get(v.as_tensor()).is_some());
     }
 }

@@ -157,6 +157,27 @@ impl<T: Copy + std::ops::Add<Output = T>, F: Fn(T) -> T> Loop for MapRows<'_, T,
     }
 }
 
+/// `out[r, j] = (x[r, j] - mean[j]) / std[j]` over the rows of `x`.
+pub struct NormalizeRows<'a> {
+    pub out: &'a mut [std::mem::MaybeUninit<f32>],
+    pub x: &'a [f32],
+    pub mean: &'a [f32],
+    pub std: &'a [f32],
+}
+
+impl Loop for NormalizeRows<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run(self) {
+        let n = self.mean.len();
+        for (o, x) in self.out.chunks_exact_mut(n).zip(self.x.chunks_exact(n)) {
+            for (((o, &x), &m), &s) in o.iter_mut().zip(x).zip(self.mean).zip(self.std) {
+                o.write((x - m) / s);
+            }
+        }
+    }
+}
+
 /// `acc[j] += g[r, j]` over the rows of `g`, row after row (each column's order kept).
 pub struct AddRows<'a, T> {
     pub acc: &'a mut [T],

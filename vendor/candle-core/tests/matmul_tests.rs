@@ -354,3 +354,29 @@ fn cpu_matmul_output_never_reads_reused_memory() -> Result<()> {
     assert_eq!(a.matmul(&b)?.to_vec2::<f32>()?, vec![vec![0.0f32; 4]; 3]);
     Ok(())
 }
+
+/// A transposed matrix made contiguous (the weight gradients of `x·Wᵀ` layers are copied
+/// this way) holds the transpose, for shapes around the copy's tiles and from an offset.
+#[test]
+fn transposed_matrix_made_contiguous() -> Result<()> {
+    let device = &Device::Cpu;
+    for (rows, cols) in [(2, 2), (3, 17), (16, 16), (17, 33), (40, 5), (129, 70)] {
+        let n = rows * cols;
+        let data: Vec<f32> = (0..n + 7).map(|i| i as f32 * 0.5 - 3.0).collect();
+        // A [rows, cols] matrix starting 7 elements into its buffer, then transposed.
+        let m = Tensor::from_vec(data.clone(), n + 7, device)?
+            .narrow(0, 7, n)?
+            .reshape((rows, cols))?;
+        let t = m.t()?.contiguous()?;
+        assert!(t.is_contiguous());
+        let got = t.to_vec2::<f32>()?;
+        for (j, row) in got.iter().enumerate() {
+            for (i, &v) in row.iter().enumerate() {
+                assert_eq!(v, data[7 + i * cols + j], "{rows}x{cols}: ({j}, {i})");
+            }
+        }
+        let back = t.t()?.contiguous()?.to_vec2::<f32>()?;
+        assert_eq!(back, m.to_vec2::<f32>()?, "{rows}x{cols}: round trip");
+    }
+    Ok(())
+}

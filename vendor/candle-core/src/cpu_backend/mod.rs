@@ -972,7 +972,43 @@ fn copy2d_<T: Copy>(
     }
 }
 
+/// `[r, c]` when `l` is the transpose of a contiguous `[c, r]` matrix (strides `[1, r]`).
+fn transposed_2d(l: &Layout) -> Option<(usize, usize)> {
+    match (l.dims(), l.stride()) {
+        (&[r, c], &[1, s]) if s == r && r > 1 && c > 1 => Some((r, c)),
+        _ => None,
+    }
+}
+
+/// `dst[i·c + j] = src[i + j·r]` (the transpose of a contiguous `[c, r]` matrix into a
+/// contiguous `[r, c]` one), in square tiles: each source column is read as a run and each
+/// tile's destination rows stay in cache, where the generic strided walk reads one element
+/// per cache line and computes every index from the layout.
+fn copy_transposed_2d<T: Copy>(src: &[T], dst: &mut [T], r: usize, c: usize) {
+    const TILE: usize = 16;
+    for i0 in (0..r).step_by(TILE) {
+        let i1 = (i0 + TILE).min(r);
+        for j0 in (0..c).step_by(TILE) {
+            for j in j0..(j0 + TILE).min(c) {
+                let column = &src[j * r + i0..j * r + i1];
+                for (k, &v) in column.iter().enumerate() {
+                    dst[(i0 + k) * c + j] = v;
+                }
+            }
+        }
+    }
+}
+
 fn copy_strided_src_<T: Copy>(src: &[T], dst: &mut [T], dst_offset: usize, src_l: &Layout) {
+    if let Some((r, c)) = transposed_2d(src_l) {
+        let start = src_l.start_offset();
+        return copy_transposed_2d(
+            &src[start..start + r * c],
+            &mut dst[dst_offset..dst_offset + r * c],
+            r,
+            c,
+        );
+    }
     match src_l.strided_blocks() {
         crate::StridedBlocks::SingleBlock { start_offset, len } => dst
             [dst_offset..dst_offset + len]

@@ -489,10 +489,7 @@ mod tests {
         let decay = |name: &str| if name == "w" { 0.01 } else { 0.0 };
         let mut fused = Adam::new(&map_a, 0.003).unwrap().with_weight_decay(decay);
         let mut ops = Adam::new(&map_b, 0.003).unwrap().with_weight_decay(decay);
-        let bits = |t: &Tensor| -> Vec<u32> {
-            let v = t.flatten_all().unwrap().to_vec1::<f32>().unwrap();
-            v.into_iter().map(f32::to_bits).collect()
-        };
+        use crate::nn::bit_exact::f32_bits as bits;
         let loss = |w: &Tensor, b: &Tensor| -> GradStore {
             let y = w.broadcast_add(b).unwrap();
             (y.sqr().unwrap() - y.sin().unwrap() * 3.0)

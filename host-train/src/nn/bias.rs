@@ -209,16 +209,7 @@ mod tests {
         .unwrap();
         let fused = add_bias_elu(x.as_tensor(), b.as_tensor()).unwrap();
         let apart = crate::nn::elu::elu(&add_bias(x.as_tensor(), b.as_tensor()).unwrap()).unwrap();
-        let bits = |t: &Tensor| -> Vec<u32> {
-            let v = t.flatten_all().unwrap().to_vec1::<f32>().unwrap();
-            v.into_iter().map(f32::to_bits).collect()
-        };
-        assert_eq!(bits(&fused), bits(&apart));
-        let grads = |y: &Tensor| y.mul(&w)?.sum_all()?.backward();
-        let (g1, g2) = (grads(&fused).unwrap(), grads(&apart).unwrap());
-        for v in [&x, &b] {
-            assert_eq!(bits(g1.get(v).unwrap()), bits(g2.get(v).unwrap()));
-        }
+        crate::nn::bit_exact::assert_same_bits_and_gradients(&fused, &apart, &w, &[&x, &b]);
         let wrong = Tensor::zeros(3, candle_core::DType::F32, &dev).unwrap();
         let err = add_bias_elu(x.as_tensor(), &wrong).unwrap_err().to_string();
         assert!(err.contains("bias-add-elu"), "{err}");

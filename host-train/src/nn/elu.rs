@@ -556,15 +556,6 @@ mod tests {
         .unwrap();
         let fused = times_elu_derivative(g.as_tensor(), z.as_tensor()).unwrap();
         let apart = g.mul(&elu_derivative(z.as_tensor()).unwrap()).unwrap();
-        let bits = |t: &Tensor| -> Vec<u32> {
-            let v = t.flatten_all().unwrap().to_vec1::<f32>().unwrap();
-            v.into_iter().map(f32::to_bits).collect()
-        };
-        assert_eq!(bits(&fused), bits(&apart));
-        let grads = |y: &Tensor| y.mul(&w)?.sum_all()?.backward();
-        let (g1, g2) = (grads(&fused).unwrap(), grads(&apart).unwrap());
-        for v in [&g, &z] {
-            assert_eq!(bits(g1.get(v).unwrap()), bits(g2.get(v).unwrap()));
-        }
+        crate::nn::bit_exact::assert_same_bits_and_gradients(&fused, &apart, &w, &[&g, &z]);
     }
 }

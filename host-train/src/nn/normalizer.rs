@@ -255,11 +255,8 @@ mod tests {
             .unwrap()
             .broadcast_div(n.std_var.as_tensor())
             .unwrap();
-        let bits = |t: &Tensor| -> Vec<u32> {
-            let v = t.flatten_all().unwrap().to_vec1::<f32>().unwrap();
-            v.into_iter().map(f32::to_bits).collect()
-        };
-        assert_eq!(bits(&fused), bits(&reference));
+        use crate::nn::bit_exact::f32_bits;
+        assert_eq!(f32_bits(&fused), f32_bits(&reference));
         assert!(!fused.track_op());
         // A tensor that tracks gradients keeps them through the normalization.
         let v = candle_core::Var::from_tensor(&x).unwrap();

@@ -43,6 +43,17 @@ fn map_rows<T: Copy + Send + Sync + std::ops::Add<Output = T>>(
     out
 }
 
+/// An error naming `op` unless `x` is `[B, n]` with `n > 0` (`what` names the `[n]` operand).
+pub(crate) fn check_rows(op: &str, x: &Layout, n: usize, what: &str) -> Result<()> {
+    if x.dims().len() != 2 || x.dims()[1] != n || n == 0 {
+        return Err(candle_core::Error::Msg(format!(
+            "{op}: x {:?} against {what} of {n}",
+            x.dims()
+        )));
+    }
+    Ok(())
+}
+
 /// The column sums of `g`'s rows of `n`, each column added row after row (the same order
 /// at every vector width).
 fn sum_rows<T: Copy + Default + std::ops::AddAssign>(g: &[T], n: usize) -> Vec<T> {
@@ -73,12 +84,7 @@ impl CustomOp2 for BiasAdd {
     ) -> Result<(CpuStorage, Shape)> {
         let name = self.name();
         let n = l2.shape().elem_count();
-        if l1.dims().len() != 2 || l1.dims()[1] != n || n == 0 {
-            return Err(candle_core::Error::Msg(format!(
-                "{name}: x {:?} against a bias of {n}",
-                l1.dims()
-            )));
-        }
+        check_rows(name, l1, n, "a bias")?;
         let out = match (s1, s2) {
             (CpuStorage::F32(x), CpuStorage::F32(b)) => {
                 let (x, b) = (contiguous(x, l1, name)?, contiguous(b, l2, name)?);

@@ -3,6 +3,7 @@
 //! already includes the epsilon. The statistics live in variables `normalizer.<name>.mean|std`
 //! (and `.count`), so the exported checkpoint carries them.
 
+use crate::nn::bias::check_rows;
 use crate::nn::elu::slice as contiguous;
 use crate::nn::simd;
 use candle_core::{CpuStorage, CustomOp3, DType, Device, Layout, Result, Shape, Tensor, Var};
@@ -146,9 +147,8 @@ impl EmpiricalNormalizer {
     /// the one pass equals bit for bit (tested).
     pub fn normalize(&self, x: &Tensor) -> Result<Tensor> {
         let (mean, std) = (self.mean_var.as_tensor(), self.std_var.as_tensor());
-        let x = x.contiguous()?;
         if !x.track_op() && x.dtype() == DType::F32 && x.dims().len() == 2 {
-            return x.apply_op3_no_bwd(mean, std, &NormalizeRows);
+            return x.contiguous()?.apply_op3_no_bwd(mean, std, &NormalizeRows);
         }
         x.broadcast_sub(&mean.detach())?
             .broadcast_div(&std.detach())
@@ -172,14 +172,8 @@ impl CustomOp3 for NormalizeRows {
         l3: &Layout,
     ) -> Result<(CpuStorage, Shape)> {
         let name = self.name();
-        let n = l2.shape().elem_count();
-        if l1.dims().len() != 2 || l1.dims()[1] != n || l3.shape().elem_count() != n || n == 0 {
-            return Err(candle_core::Error::Msg(format!(
-                "{name}: x {:?} against statistics of {n} and {}",
-                l1.dims(),
-                l3.shape().elem_count()
-            )));
-        }
+        check_rows(name, l1, l2.shape().elem_count(), "a mean")?;
+        check_rows(name, l1, l3.shape().elem_count(), "a standard deviation")?;
         let (CpuStorage::F32(x), CpuStorage::F32(mean), CpuStorage::F32(std)) = (s1, s2, s3) else {
             return Err(candle_core::Error::Msg(format!("{name}: f32 only")));
         };

@@ -3,8 +3,9 @@
 
 use crate::nn::simd;
 use candle_core::backprop::GradStore;
-use candle_core::{Result, Tensor, Var};
+use candle_core::{CpuStorage, DType, Error, InplaceOp1, Layout, Result, Tensor, Var};
 use candle_nn::VarMap;
+use std::cell::RefCell;
 use std::collections::HashMap;
 
 struct Slot {
@@ -161,52 +162,54 @@ fn op_by_op_step(s: &Slot, g: &Tensor, c: &Constants) -> Result<()> {
     Ok(())
 }
 
-/// The step in one pass over the f32 variable, gradient and moments, bit for bit what
-/// [`op_by_op_step`] computes: each scalar enters as candle's `Tensor * f64` does (an affine
-/// map `x * (c as f32) + 0`, `x / c` as `x * (1 / c)`, `x + c` as `x * 1 + c`), in the same
-/// order. Returns false (nothing done) for other dtypes or non-contiguous tensors.
+/// The step in one pass over the f32 variable, gradient and moments, in place, bit for bit
+/// what [`op_by_op_step`] computes: each scalar enters as candle's `Tensor * f64` does (an
+/// affine map `x * (c as f32) + 0`, `x / c` as `x * (1 / c)`, `x + c` as `x * 1 + c`), in the
+/// same order. Returns false (nothing done) for other dtypes, layouts or shapes.
 fn fused_step(s: &Slot, g: &Tensor, c: &Constants) -> Result<bool> {
-    let slices = (
-        f32_slice(s.var.as_tensor()),
-        f32_slice(g),
-        f32_slice(s.m.as_tensor()),
-        f32_slice(s.v.as_tensor()),
-    );
-    let (Some(w), Some(g), Some(m), Some(v)) = slices else {
-        return Ok(false);
-    };
-    let n = w.len();
-    if g.len() != n || m.len() != n || v.len() != n {
+    let (w, m, v) = (s.var.as_tensor(), s.m.as_tensor(), s.v.as_tensor());
+    let n = w.elem_count();
+    let fits =
+        |t: &Tensor| t.elem_count() == n && t.dtype() == DType::F32 && t.layout().is_contiguous();
+    if !([w, g, m, v].into_iter().all(fits) && w.device().is_cpu()) {
         return Ok(false);
     }
-    let (mut w_new, mut m_new, mut v_new) = (
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-    );
-    simd::widest(AdamLoop {
-        w: &w,
-        g: &g,
-        m: &m,
-        v: &v,
-        w_out: &mut w_new.spare_capacity_mut()[..n],
-        m_out: &mut m_new.spare_capacity_mut()[..n],
-        v_out: &mut v_new.spare_capacity_mut()[..n],
-        c: ElementConstants::new(c),
-    });
-    // SAFETY: the loop wrote the first `n` elements of each.
-    unsafe {
-        w_new.set_len(n);
-        m_new.set_len(n);
-        v_new.set_len(n);
-    }
-    drop((w, g, m, v));
-    let shape = s.var.shape().clone();
-    let dev = s.var.device().clone();
-    s.var.set(&Tensor::from_vec(w_new, shape.clone(), &dev)?)?;
-    s.m.set(&Tensor::from_vec(m_new, shape.clone(), &dev)?)?;
-    s.v.set(&Tensor::from_vec(v_new, shape, &dev)?)?;
+    let c = ElementConstants::new(c);
+    with_f32_mut(w, |w| {
+        with_f32_mut(m, |m| {
+            with_f32_mut(v, |v| {
+                let g = f32_slice(g).ok_or_else(|| Error::Msg("adam: gradient layout".into()))?;
+                simd::widest(AdamLoop { w, g: &g, m, v, c });
+                Ok(())
+            })
+        })
+    })?;
     Ok(true)
+}
+
+/// Runs `f` on a contiguous f32 CPU tensor's elements under its storage's write lock (the
+/// tensor is written in place; candle's in-place op, no copy).
+fn with_f32_mut(t: &Tensor, f: impl FnOnce(&mut [f32]) -> Result<()>) -> Result<()> {
+    t.inplace_op1(&WithF32Mut(RefCell::new(Some(f))))
+}
+
+/// [`with_f32_mut`]'s in-place op: the closure, taken once.
+struct WithF32Mut<F>(RefCell<Option<F>>);
+
+impl<F: FnOnce(&mut [f32]) -> Result<()>> InplaceOp1 for WithF32Mut<F> {
+    fn name(&self) -> &'static str {
+        "with-f32-mut"
+    }
+
+    fn cpu_fwd(&self, storage: &mut CpuStorage, layout: &Layout) -> Result<()> {
+        let f = self.0.borrow_mut().take();
+        match (storage, layout.contiguous_offsets(), f) {
+            (CpuStorage::F32(data), Some((start, end)), Some(f)) => f(&mut data[start..end]),
+            _ => Err(Error::Msg(
+                "with-f32-mut: a contiguous f32 tensor, once".into(),
+            )),
+        }
+    }
 }
 
 /// A read guard on a contiguous f32 tensor's elements, `None` for anything else.
@@ -273,15 +276,13 @@ impl ElementConstants {
     }
 }
 
-/// The fused step's loop (compiled for the CPU's vector width, [`simd`]).
+/// The fused step's loop (compiled for the CPU's vector width, [`simd`]): the weights and
+/// moments are updated in place.
 struct AdamLoop<'a> {
-    w: &'a [f32],
+    w: &'a mut [f32],
     g: &'a [f32],
-    m: &'a [f32],
-    v: &'a [f32],
-    w_out: &'a mut [std::mem::MaybeUninit<f32>],
-    m_out: &'a mut [std::mem::MaybeUninit<f32>],
-    v_out: &'a mut [std::mem::MaybeUninit<f32>],
+    m: &'a mut [f32],
+    v: &'a mut [f32],
     c: ElementConstants,
 }
 
@@ -290,8 +291,10 @@ impl simd::Loop for AdamLoop<'_> {
     #[inline(always)]
     fn run(self) {
         let c = self.c;
-        for i in 0..self.w.len() {
-            let (w, g, m, v) = (self.w[i], self.g[i], self.m[i], self.v[i]);
+        let n = self.w.len();
+        let (g_all, m_all, v_all) = (&self.g[..n], &mut self.m[..n], &mut self.v[..n]);
+        for i in 0..n {
+            let (w, g, m, v) = (self.w[i], g_all[i], m_all[i], v_all[i]);
             let g = match c.scale {
                 Some(s) => g * s + 0.0,
                 None => g,
@@ -304,9 +307,9 @@ impl simd::Loop for AdamLoop<'_> {
             let v = (v * c.beta2 + 0.0) + ((g * g) * c.one_minus_beta2 + 0.0);
             let denom = (v * c.inv_bias2 + 0.0).sqrt() * 1.0 + c.eps;
             let update = (m / denom) * c.step_size + 0.0;
-            self.w_out[i].write(w - update);
-            self.m_out[i].write(m);
-            self.v_out[i].write(v);
+            self.w[i] = w - update;
+            m_all[i] = m;
+            v_all[i] = v;
         }
     }
 }

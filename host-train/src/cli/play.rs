@@ -1,8 +1,10 @@
 //! `hexapod play`: runs a checkpoint's policy (deterministic) and writes the trajectory
 //! (CSV), plots, and an animated 3D replay (GIF) of the first robot, on the checkpoint's
-//! ground or on one tile of the terrain grid (`--tile StairsUp --level 5`); with `--rerun`
+//! ground or on one tile of the terrain grid (`--tile StairsUp --level 5`), with the
+//! discriminator's score and style reward per step for AMP checkpoints; with `--rerun`
 //! (a build with the `rerun` feature) also a rerun recording to scrub (`replay.rrd`).
 
+use crate::amp::discriminator::style_reward_of;
 use crate::checkpoint::load_for_inference;
 use crate::cli::eval::{contact_mask, SETTLE_STEPS};
 use crate::cli::recording::{require_rerun, Recording};
@@ -221,6 +223,10 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
     for name in LEG_NAMES {
         write!(csv, ",clearance_m_{name}").ok();
     }
+    let with_style = ppo.disc.is_some();
+    if with_style {
+        csv.push_str(",d_score,style_reward");
+    }
     csv.push('\n');
     let mut frames = Vec::with_capacity(args.steps);
     // The stand-in has no world pose: integrate its planar velocity and yaw rate.
@@ -282,6 +288,13 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
             );
         }
         let res = play_env.env().step(&act.actions);
+        // The discriminator's verdict on this step's transition (the style reward's input).
+        let d_score = if with_style {
+            let (_, d) = ppo.style_rewards(amp, &res.obs.amp[..AMP_STATE_DIM])?;
+            Some(d[0])
+        } else {
+            None
+        };
         time_s.push(t);
         stance_masks.push(contact_mask(p));
         if step >= SETTLE_STEPS {
@@ -291,6 +304,9 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
             let mask = contact_mask(p);
             summary.tripod += usize::from(mask == TRIPOD_A_MASK || mask == TRIPOD_B_MASK);
             summary.samples += 1;
+            if let Some(d) = d_score {
+                summary.sum_style += f64::from(style_reward_of(d));
+            }
         }
         summary.falls += usize::from(res.dones[0] && !res.time_outs[0]);
         write!(
@@ -335,6 +351,9 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
         for (leg, c) in clearance_m.iter().enumerate() {
             write!(csv, ",{c}").ok();
             clearance_series[leg].push((t as f64, *c as f64));
+        }
+        if let Some(d) = d_score {
+            write!(csv, ",{d},{}", style_reward_of(d)).ok();
         }
         csv.push('\n');
         frames.push(ReplayFrame {
@@ -389,6 +408,12 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
             summary.tripod as f64 / n,
             summary.falls
         );
+        if with_style {
+            println!(
+                "style reward (unweighted, max(0, 1 - 0.25 (d - 1)^2), of at most 1): mean {:.3} over the same steps",
+                summary.sum_style / n
+            );
+        }
     }
     Ok(())
 }
@@ -400,6 +425,8 @@ struct Summary {
     tripod: usize,
     samples: usize,
     falls: usize,
+    /// Sum of the unweighted style reward (AMP checkpoints).
+    sum_style: f64,
 }
 
 /// `play`'s plots: velocity against the command (linear in m/s, yaw rate in rad/s, one

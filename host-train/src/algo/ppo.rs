@@ -405,6 +405,19 @@ impl Ppo {
             .to_vec1::<f32>()
     }
 
+    /// Sets every action dimension's standard deviation to `std` (the actor's `log_std`), as
+    /// a fine-tuning stage's restart of exploration; the action means are unchanged.
+    pub fn set_action_std(&mut self, std: f32) -> Result<()> {
+        if !(std.is_finite() && std > 0.0) {
+            candle_core::bail!("the action standard deviation must be positive, got {std}");
+        }
+        let data = self.params.data().lock().expect("var map lock");
+        let var = data
+            .get("actor.log_std")
+            .ok_or_else(|| candle_core::Error::Msg("no actor.log_std in the policy".into()))?;
+        var.set(&var.ones_like()?.affine(0.0, f64::from(std.ln()))?)
+    }
+
     /// Style rewards `[N]` (`style_weight * dt * max(0, 1 - 0.25 (d - 1)^2)`) and raw discriminator outputs for policy transitions;
     /// zeros without AMP.
     pub fn style_rewards(&self, amp: &[f32], amp_next: &[f32]) -> Result<(Vec<f32>, Vec<f32>)> {
@@ -659,5 +672,26 @@ mod tests {
         let s2 = 0.5f32.exp();
         let want = (0.5 + (1.0 + 1.0) / (2.0 * s2 * s2) - 0.5) + 0.0;
         assert!((gaussian_kl(&m, &ls, &m2, &ls2).unwrap() - want).abs() < 1e-5);
+    }
+
+    #[test]
+    fn set_action_std_sets_every_dimension_and_refuses_bad_values() {
+        let cfg = crate::config::TrainConfig::default();
+        let mut ppo = Ppo::new(&cfg).unwrap();
+        let before = ppo.ac.log_std.to_vec1::<f32>().unwrap();
+        assert!(before
+            .iter()
+            .all(|&l| (l - cfg.policy.init_noise_std.ln()).abs() < 1e-6));
+        ppo.set_action_std(0.5).unwrap();
+        let after = ppo.ac.log_std.to_vec1::<f32>().unwrap();
+        assert_eq!(after.len(), 18);
+        assert!(
+            after.iter().all(|&l| (l.exp() - 0.5).abs() < 1e-6),
+            "{after:?}"
+        );
+        for bad in [0.0, -1.0, f32::NAN] {
+            assert!(ppo.set_action_std(bad).is_err(), "{bad}");
+        }
+        assert_eq!(ppo.ac.log_std.to_vec1::<f32>().unwrap(), after);
     }
 }

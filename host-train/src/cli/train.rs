@@ -43,6 +43,11 @@ pub struct TrainArgs {
     /// Seed of the environment and the learner (`env.seed` and `runner.seed`).
     #[arg(long)]
     pub seed: Option<u64>,
+    /// With `--resume`: set the action standard deviation to this value (every dimension)
+    /// before training on, to restart exploration in a fine-tuning stage; without it the
+    /// checkpoint's is kept. Give it once, when the stage starts, not when resuming the stage.
+    #[arg(long, requires = "resume")]
+    pub reset_noise_std: Option<f32>,
 }
 
 /// Applies command-line overrides and validates.
@@ -112,6 +117,13 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
             ckpt.display(),
             runner.iteration
         );
+        if let Some(std) = args.reset_noise_std {
+            runner
+                .ppo
+                .set_action_std(std)
+                .context("--reset-noise-std")?;
+            eprintln!("action standard deviation reset to {std}");
+        }
     }
     std::fs::write(run_dir.join("config.toml"), cfg.to_toml_string())
         .with_context(|| format!("writing {}", run_dir.display()))?;

@@ -415,7 +415,7 @@ impl Ppo {
         let var = data
             .get("actor.log_std")
             .ok_or_else(|| candle_core::Error::Msg("no actor.log_std in the policy".into()))?;
-        var.set(&var.ones_like()?.affine(0.0, f64::from(std.ln()))?)
+        var.set(&Tensor::full(std.ln(), var.shape(), var.device())?)
     }
 
     /// Style rewards `[N]` (`style_weight * dt * max(0, 1 - 0.25 (d - 1)^2)`) and raw discriminator outputs for policy transitions;

@@ -4,7 +4,6 @@
 //! discriminator's score and style reward per step for AMP checkpoints; with `--rerun`
 //! (a build with the `rerun` feature) also a rerun recording to scrub (`replay.rrd`).
 
-use crate::amp::discriminator::style_reward_of;
 use crate::checkpoint::load_for_inference;
 use crate::cli::eval::{contact_mask, SETTLE_STEPS};
 use crate::cli::recording::{require_rerun, Recording};
@@ -288,12 +287,14 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
             );
         }
         let res = play_env.env().step(&act.actions);
-        // The discriminator's verdict on this step's transition (the style reward's input).
-        let d_score = if with_style {
-            let (_, d) = ppo.style_rewards(amp, &res.obs.amp[..AMP_STATE_DIM])?;
-            Some(d[0])
-        } else {
-            None
+        // The discriminator's score and the unweighted style reward of this step's transition
+        // (s_t, s_t+1), s_t+1 taken before any reset, as the trainer takes it.
+        let style = match &ppo.disc {
+            Some(disc) => {
+                let (r, d) = disc.style_reward(amp, &res.amp_next[..AMP_STATE_DIM])?;
+                Some((d[0], r[0]))
+            }
+            None => None,
         };
         time_s.push(t);
         stance_masks.push(contact_mask(p));
@@ -304,8 +305,8 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
             let mask = contact_mask(p);
             summary.tripod += usize::from(mask == TRIPOD_A_MASK || mask == TRIPOD_B_MASK);
             summary.samples += 1;
-            if let Some(d) = d_score {
-                summary.sum_style += f64::from(style_reward_of(d));
+            if let Some((_, r)) = style {
+                summary.sum_style += f64::from(r);
             }
         }
         summary.falls += usize::from(res.dones[0] && !res.time_outs[0]);
@@ -352,8 +353,8 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
             write!(csv, ",{c}").ok();
             clearance_series[leg].push((t as f64, *c as f64));
         }
-        if let Some(d) = d_score {
-            write!(csv, ",{d},{}", style_reward_of(d)).ok();
+        if let Some((d, r)) = style {
+            write!(csv, ",{d},{r}").ok();
         }
         csv.push('\n');
         frames.push(ReplayFrame {

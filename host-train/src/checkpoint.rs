@@ -333,11 +333,12 @@ pub fn load(dir: &Path, ppo: &mut Ppo, with_optimizer: bool) -> Result<(), Check
 
 /// Whether a checkpoint saved with `saved` has the networks `cfg` builds (policy,
 /// discriminator and RMA encoder shapes); the error says which differ. The initial action
-/// noise is not a shape: the checkpoint carries its learned log-std.
+/// noise and its floor are not shapes: the checkpoint carries its learned log-std.
 pub fn same_networks(saved: &TrainConfig, cfg: &TrainConfig) -> Result<(), String> {
     let mut differ = Vec::new();
     let shape = |p: &crate::config::PolicyConfig| crate::config::PolicyConfig {
         init_noise_std: 0.0,
+        min_noise_std: 0.0,
         ..p.clone()
     };
     if shape(&saved.policy) != shape(&cfg.policy) {
@@ -483,10 +484,11 @@ mod tests {
     }
 
     #[test]
-    fn the_initial_action_noise_is_not_a_network_shape() {
+    fn the_initial_action_noise_and_its_floor_are_not_network_shapes() {
         let saved = tiny();
         let mut cfg = saved.clone();
         cfg.policy.init_noise_std = 1.0;
+        cfg.policy.min_noise_std = 0.35;
         assert_eq!(same_networks(&saved, &cfg), Ok(()));
         cfg.policy.actor_hidden = vec![16];
         cfg.amp.discriminator_hidden = vec![4];

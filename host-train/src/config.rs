@@ -118,6 +118,11 @@ pub struct PolicyConfig {
     pub terrain_latent: usize,
     /// Initial action standard deviation.
     pub init_noise_std: f32,
+    /// Floor on every action dimension's standard deviation, enforced after each optimizer
+    /// step (AMP_for_hardware's `min_normalized_std` clamp, in action units); 0 = no floor,
+    /// the paper's setting. An option for fine-tuning stages whose exploration PPO would
+    /// otherwise shrink away.
+    pub min_noise_std: f32,
     /// The actor reads the velocity estimate (false: "Baseline").
     pub use_estimator: bool,
     /// The critic reads the privileged state and terrain through g_p and g_e
@@ -139,6 +144,7 @@ impl Default for PolicyConfig {
             terrain_encoder_hidden: vec![256, 128],
             terrain_latent: 16,
             init_noise_std: 1.0,
+            min_noise_std: 0.0,
             use_estimator: true,
             privileged_critic: true,
         }
@@ -479,6 +485,9 @@ impl TrainConfig {
         if self.policy.init_noise_std <= 0.0 {
             return bad("policy.init_noise_std must be positive");
         }
+        if !(self.policy.min_noise_std.is_finite() && self.policy.min_noise_std >= 0.0) {
+            return bad("policy.min_noise_std must be zero (no floor) or positive");
+        }
         let sizes = [
             &self.policy.estimator_hidden,
             &self.policy.memory_hidden,
@@ -683,6 +692,12 @@ mod tests {
         )
         .unwrap_err();
         assert!(err.to_string().contains("divisible"), "{err}");
+        for floor in ["-0.1", "nan"] {
+            let err =
+                TrainConfig::from_toml_str(&format!("[policy]\nmin_noise_std = {floor}\n"), "x")
+                    .unwrap_err();
+            assert!(err.to_string().contains("min_noise_std"), "{err}");
+        }
     }
 
     fn temp_dir(name: &str) -> std::path::PathBuf {

@@ -411,11 +411,27 @@ impl Ppo {
         if !(std.is_finite() && std > 0.0) {
             candle_core::bail!("the action standard deviation must be positive, got {std}");
         }
-        let data = self.params.data().lock().expect("var map lock");
-        let var = data
-            .get("actor.log_std")
-            .ok_or_else(|| candle_core::Error::Msg("no actor.log_std in the policy".into()))?;
+        let var = self.log_std_var()?;
         var.set(&Tensor::full(std.ln(), var.shape(), var.device())?)
+    }
+
+    /// Raises every action dimension's standard deviation below `policy.min_noise_std` to it
+    /// (nothing when the floor is 0); the trainer calls it after every optimizer step.
+    pub fn apply_action_std_floor(&self) -> Result<()> {
+        let floor = self.cfg.policy.min_noise_std;
+        if floor <= 0.0 {
+            return Ok(());
+        }
+        let var = self.log_std_var()?;
+        let floored = var.as_tensor().maximum(floor.ln())?;
+        var.set(&floored)
+    }
+
+    fn log_std_var(&self) -> Result<candle_core::Var> {
+        let data = self.params.data().lock().expect("var map lock");
+        data.get("actor.log_std")
+            .cloned()
+            .ok_or_else(|| candle_core::Error::Msg("no actor.log_std in the policy".into()))
     }
 
     /// Style rewards `[N]` (`style_weight * dt * max(0, 1 - 0.25 (d - 1)^2)`) and raw discriminator outputs for policy transitions;
@@ -599,6 +615,7 @@ impl Ppo {
         }
         let grads = loss.backward()?;
         st.grad_norm = self.opt.step(&grads, Some(p.max_grad_norm as f64))? as f32;
+        self.apply_action_std_floor()?;
         if let Some(dopt) = &mut self.disc_opt {
             if self.cfg.amp.follow_policy_learning_rate {
                 dopt.lr = self.opt.lr;
@@ -693,5 +710,37 @@ mod tests {
             assert!(ppo.set_action_std(bad).is_err(), "{bad}");
         }
         assert_eq!(ppo.ac.log_std.to_vec1::<f32>().unwrap(), after);
+    }
+
+    #[test]
+    fn the_action_std_floor_raises_what_is_below_it_and_keeps_what_is_above() {
+        let stds = |ppo: &Ppo| -> Vec<f32> {
+            let ls = ppo.ac.log_std.to_vec1::<f32>().unwrap();
+            ls.iter().map(|l| l.exp()).collect()
+        };
+        let mut cfg = crate::config::TrainConfig::default();
+        let mut plain = Ppo::new(&cfg).unwrap();
+        plain.set_action_std(0.1).unwrap();
+        plain.apply_action_std_floor().unwrap();
+        assert!(
+            stds(&plain).iter().all(|s| (s - 0.1).abs() < 1e-6),
+            "no floor by default"
+        );
+        cfg.policy.min_noise_std = 0.3;
+        let mut ppo = Ppo::new(&cfg).unwrap();
+        ppo.set_action_std(0.1).unwrap();
+        ppo.apply_action_std_floor().unwrap();
+        assert!(
+            stds(&ppo).iter().all(|s| (s - 0.3).abs() < 1e-6),
+            "{:?}",
+            stds(&ppo)
+        );
+        ppo.set_action_std(0.6).unwrap();
+        ppo.apply_action_std_floor().unwrap();
+        assert!(
+            stds(&ppo).iter().all(|s| (s - 0.6).abs() < 1e-6),
+            "{:?}",
+            stds(&ppo)
+        );
     }
 }

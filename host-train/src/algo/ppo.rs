@@ -714,33 +714,22 @@ mod tests {
 
     #[test]
     fn the_action_std_floor_raises_what_is_below_it_and_keeps_what_is_above() {
-        let stds = |ppo: &Ppo| -> Vec<f32> {
+        // Every dimension's deviation after setting it to `std` and applying the floor.
+        let floored = |ppo: &mut Ppo, std: f32| -> Vec<f32> {
+            ppo.set_action_std(std).unwrap();
+            ppo.apply_action_std_floor().unwrap();
             let ls = ppo.ac.log_std.to_vec1::<f32>().unwrap();
             ls.iter().map(|l| l.exp()).collect()
         };
+        let near = |v: &[f32], want: f32| v.iter().all(|s| (s - want).abs() < 1e-6);
         let mut cfg = crate::config::TrainConfig::default();
-        let mut plain = Ppo::new(&cfg).unwrap();
-        plain.set_action_std(0.1).unwrap();
-        plain.apply_action_std_floor().unwrap();
-        assert!(
-            stds(&plain).iter().all(|s| (s - 0.1).abs() < 1e-6),
-            "no floor by default"
-        );
+        let plain = floored(&mut Ppo::new(&cfg).unwrap(), 0.1);
+        assert!(near(&plain, 0.1), "no floor by default: {plain:?}");
         cfg.policy.min_noise_std = 0.3;
         let mut ppo = Ppo::new(&cfg).unwrap();
-        ppo.set_action_std(0.1).unwrap();
-        ppo.apply_action_std_floor().unwrap();
-        assert!(
-            stds(&ppo).iter().all(|s| (s - 0.3).abs() < 1e-6),
-            "{:?}",
-            stds(&ppo)
-        );
-        ppo.set_action_std(0.6).unwrap();
-        ppo.apply_action_std_floor().unwrap();
-        assert!(
-            stds(&ppo).iter().all(|s| (s - 0.6).abs() < 1e-6),
-            "{:?}",
-            stds(&ppo)
-        );
+        let below = floored(&mut ppo, 0.1);
+        assert!(near(&below, 0.3), "{below:?}");
+        let above = floored(&mut ppo, 0.6);
+        assert!(near(&above, 0.6), "{above:?}");
     }
 }

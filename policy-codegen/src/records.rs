@@ -1,5 +1,6 @@
 //! Observation sets for calibration and accuracy: synthetic (deterministic, plausible
-//! ranges) until recorded simulator observations exist, and a file format for recordings.
+//! ranges; the simulator's closed loop adds the rest, [`crate::calibration_set`]), and a
+//! file format for recordings (`sim-compare --record`).
 //!
 //! File format: little-endian f32 rows of 273 values, the simulator's observation buffers
 //! side by side: actor observation (63) then flattened history (210, oldest first).

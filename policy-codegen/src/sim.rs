@@ -30,20 +30,38 @@ pub struct ClosedLoopReport {
     pub mean_abs_action: f64,
 }
 
-/// Runs `act` (actor observation, history -> action) on `num_envs` robots for `steps`
-/// policy steps; pushes every observation into `record` when given.
-pub fn closed_loop(
-    mut act: impl FnMut(&[f32; ACTOR_OBS_DIM], &[f32; HISTORY_DIM]) -> [f32; NUM_JOINTS],
-    num_envs: usize,
-    steps: usize,
-    seed: u64,
-    mut record: Option<&mut Vec<ObsRecord>>,
-) -> anyhow::Result<ClosedLoopReport> {
-    let config = EnvConfig {
+/// The simulator's default robots on flat ground: what `sim-compare` runs.
+pub fn flat_config(num_envs: usize, seed: u64) -> EnvConfig {
+    EnvConfig {
         num_envs,
         seed,
         ..Default::default()
+    }
+}
+
+/// The same robots on the training terrain's tiles (every kind, rows 0-9 drawn at random,
+/// no curriculum): stairs and slopes up and down.
+pub fn terrain_config(num_envs: usize, seed: u64) -> EnvConfig {
+    let mut config = EnvConfig {
+        num_envs,
+        seed,
+        curriculum: false,
+        ..Default::default()
     };
+    config.terrain.tiles = true;
+    config.max_initial_level = config.terrain.rows.saturating_sub(1);
+    config
+}
+
+/// Runs `act` (actor observation, history -> action) on the robots of `config` for
+/// `steps` policy steps; pushes every observation into `record` when given.
+pub fn closed_loop(
+    mut act: impl FnMut(&[f32; ACTOR_OBS_DIM], &[f32; HISTORY_DIM]) -> [f32; NUM_JOINTS],
+    config: EnvConfig,
+    steps: usize,
+    mut record: Option<&mut Vec<ObsRecord>>,
+) -> anyhow::Result<ClosedLoopReport> {
+    let num_envs = config.num_envs;
     let mut env = HexapodEnv::new(config)?;
     let mut obs: Observations = env.reset();
     let mut report = ClosedLoopReport {
@@ -107,9 +125,8 @@ pub fn compare_closed_loop(
     let mut recorded = Vec::with_capacity(num_envs * steps);
     let f32_report = closed_loop(
         |o, h| f32_policy.act(o, h),
-        num_envs,
+        flat_config(num_envs, seed),
         steps,
-        seed,
         Some(&mut recorded),
     )?;
     let fixed_report = fixed.with_view(|q| {
@@ -123,9 +140,8 @@ pub fn compare_closed_loop(
                     [0.0; NUM_JOINTS]
                 }
             },
-            num_envs,
+            flat_config(num_envs, seed),
             steps,
-            seed,
             None,
         );
         anyhow::ensure!(

@@ -6,7 +6,7 @@ use hexapod_core::obs::{ACTOR_OBS_DIM, HISTORY_DIM};
 use policy_codegen::accuracy::{compare, HostScratch};
 use policy_codegen::checkpoint::{self, Normalizer, TensorMap};
 use policy_codegen::random::{random_policy, write_checkpoint, RandomSpec};
-use policy_codegen::{emit, onnx, quantize_default, records};
+use policy_codegen::{emit, onnx, quantize_default, quantize_synthetic, records};
 use std::path::{Path, PathBuf};
 
 fn repo() -> PathBuf {
@@ -66,6 +66,32 @@ fn committed_policy_crate_is_fresh() {
 }
 
 #[test]
+fn calibration_set_adds_the_policys_own_closed_loop_deterministically() {
+    let policy = random_policy(&RandomSpec {
+        seed: 5,
+        output_gain: 0.5,
+        ..Default::default()
+    });
+    let a = policy_codegen::calibration_set(&policy, 2, 20).unwrap();
+    let b = policy_codegen::calibration_set(&policy, 2, 20).unwrap();
+    let synthetic = policy_codegen::CALIBRATION_COUNT;
+    // Two rollouts (flat, terrain) of 2 robots x 20 steps after the synthetic set.
+    assert_eq!(a.len(), synthetic + 2 * 2 * 20);
+    assert_eq!(a, b);
+    assert_eq!(
+        a[..synthetic],
+        records::synthetic(synthetic, policy_codegen::CALIBRATION_SEED)[..]
+    );
+    assert!(a[synthetic..].iter().all(|r| r
+        .actor_obs
+        .iter()
+        .chain(&r.history)
+        .all(|v| v.is_finite())));
+    // The flat and the terrain rollouts differ (other seed, other ground).
+    assert_ne!(a[synthetic + 40..], a[synthetic..synthetic + 40]);
+}
+
+#[test]
 fn random_checkpoint_is_deterministic_and_loads() {
     let dir = temp_dir("random");
     let spec = RandomSpec::default();
@@ -94,7 +120,7 @@ fn fixed_point_follows_f32_with_large_actions_and_real_normalizers() {
     let (actor_norm, history_norm) = empirical_normalizers(2000);
     policy.actor_obs_norm = actor_norm;
     policy.history_norm = history_norm;
-    let q = quantize_default(&policy).unwrap();
+    let q = quantize_synthetic(&policy).unwrap();
     let report = compare(&policy, &q, &records::synthetic(1500, 3)).unwrap();
     eprintln!("{report:?}");
     assert!(report.max_abs_action > 2.0, "{report:?}");
@@ -103,7 +129,7 @@ fn fixed_point_follows_f32_with_large_actions_and_real_normalizers() {
 
 #[test]
 fn runner_step_matches_the_observation_step() {
-    let q = quantize_default(&random_policy(&RandomSpec::default())).unwrap();
+    let q = quantize_synthetic(&random_policy(&RandomSpec::default())).unwrap();
     let recs = records::synthetic(1, 11);
     q.with_view(|view| {
         let mut runner = hexapod_core::nn::PolicyRunner::<'_, 1024>::new(view).unwrap();
@@ -193,7 +219,7 @@ fn onnx_mlp_imports_and_quantizes() {
     let imported = onnx::import(&bytes).unwrap();
     assert_eq!(imported, policy);
 
-    let q = quantize_default(&imported).unwrap();
+    let q = quantize_synthetic(&imported).unwrap();
     let report = compare(&imported, &q, &records::synthetic(500, 8)).unwrap();
     assert!(report.max_abs_diff <= 2e-3, "{report:?}");
 
@@ -215,7 +241,7 @@ fn closed_loop_in_the_simulator_matches_f32() {
         ..Default::default()
     };
     let policy = random_policy(&spec);
-    let q = quantize_default(&policy).unwrap();
+    let q = quantize_synthetic(&policy).unwrap();
     let (f, x, recorded) = policy_codegen::sim::compare_closed_loop(&policy, &q, 2, 40, 3).unwrap();
     assert_eq!(recorded.len(), 80);
     let report = compare(&policy, &q, &recorded).unwrap();
@@ -301,7 +327,7 @@ fn onnx_matmul_add_graphs_import_like_gemm() {
     };
     let imported = onnx::import(&prost::Message::encode_to_vec(&model)).unwrap();
     assert_eq!(imported, policy);
-    let q = quantize_default(&imported).unwrap();
+    let q = quantize_synthetic(&imported).unwrap();
     let report = compare(&imported, &q, &records::synthetic(300, 4)).unwrap();
     assert!(report.max_abs_diff <= 2e-3, "{report:?}");
 }

@@ -70,7 +70,7 @@ pub enum CheckpointError {
     },
 }
 
-fn io(path: &Path) -> impl FnOnce(std::io::Error) -> CheckpointError + '_ {
+pub(crate) fn io(path: &Path) -> impl FnOnce(std::io::Error) -> CheckpointError + '_ {
     move |source| CheckpointError::Io {
         path: path.display().to_string(),
         source,
@@ -152,7 +152,7 @@ pub fn save_with_state(dir: &Path, ppo: &Ppo, run_state: &RunState) -> Result<()
     std::fs::rename(&tmp, dir).map_err(io(dir))
 }
 
-fn malformed(path: &Path, e: impl ToString) -> CheckpointError {
+pub(crate) fn malformed(path: &Path, e: impl ToString) -> CheckpointError {
     CheckpointError::Malformed {
         path: path.display().to_string(),
         message: e.to_string(),
@@ -259,7 +259,7 @@ pub fn load_state(dir: &Path) -> Result<RunState, CheckpointError> {
     serde_json::from_str(&text).map_err(|e| malformed(&path, e))
 }
 
-fn read_tensors(path: &Path) -> Result<HashMap<String, Tensor>, CheckpointError> {
+pub(crate) fn read_tensors(path: &Path) -> Result<HashMap<String, Tensor>, CheckpointError> {
     if !path.exists() {
         return Err(CheckpointError::Io {
             path: path.display().to_string(),

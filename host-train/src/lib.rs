@@ -5,6 +5,7 @@ pub mod algo;
 pub mod alloc;
 pub mod amp;
 pub mod checkpoint;
+pub mod checkpoint_average;
 pub mod cli;
 pub mod config;
 pub mod curriculum_carry;

@@ -35,6 +35,9 @@ enum Command {
     Sim2sim(cli::sim2sim::Sim2SimArgs),
     /// Draw a run's or checkpoint's metrics.csv as the training plots.
     Plot(cli::plot::PlotArgs),
+    /// Average the weights of several checkpoints of one run into a checkpoint (stochastic
+    /// weight averaging).
+    Average(cli::average::AverageArgs),
     /// Many trainings from one file (presets x variants x seeds), each evaluated by the
     /// suite, locally or as a Slurm job array, gathered into one report.
     Sweep(cli::sweep::SweepArgs),
@@ -53,6 +56,7 @@ fn main() -> std::process::ExitCode {
         Command::Eval(args) => cli::eval::run(args),
         Command::Sim2sim(args) => cli::sim2sim::run(args),
         Command::Plot(args) => cli::plot::run(args),
+        Command::Average(args) => cli::average::run(args),
         Command::Sweep(args) => cli::sweep::run(args),
     };
     match result {

@@ -8,7 +8,7 @@ use host_train::cli::sim2sim::{mujoco_env, nominal_sim, python_interpreter, rapi
 use std::path::Path;
 
 fn shipped_policy() -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/policies/terrain-descend")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/policies/terrain-averaged")
 }
 
 fn mujoco(sim: &host_sim::config::EnvConfig) -> host_sim::mujoco_env::MujocoEnv {

@@ -19,8 +19,9 @@ pub mod sim;
 pub mod size;
 
 /// The checkpoint `firmware/policy` is generated from: the shipped terrain policy (the paper's
-/// recipe on the tile curriculum, stairs and slopes; `assets/policies/terrain-descend/README.md`).
-pub const SHIPPED_CHECKPOINT: &str = "assets/policies/terrain-descend";
+/// recipe on the tile curriculum, stairs and slopes, its last 1,000 iterations' weights
+/// averaged; `assets/policies/terrain-averaged/README.md`).
+pub const SHIPPED_CHECKPOINT: &str = "assets/policies/terrain-averaged";
 
 /// Synthetic observations in the calibration set ([`records::synthetic`]). 20,000: with 2,000
 /// (and the closed loop) `terrain-descend`'s fixed point left f32 by 4.7e-3 on other

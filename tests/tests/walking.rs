@@ -1,5 +1,5 @@
 //! Walking with the generated fixed-point policy (`firmware/policy`, from the shipped
-//! `assets/policies/terrain-descend`) on an RC forward command for 10 s on flat ground, through
+//! `assets/policies/terrain-averaged`) on an RC forward command for 10 s on flat ground, through
 //! the whole firmware loop: no fall, and a mean forward speed within 25 % of the command.
 
 use hexapod_core::control::Policy;

@@ -1,5 +1,6 @@
 //! Subcommands of the `hexapod` binary, one file each.
 
+pub mod average;
 pub mod eval;
 pub mod play;
 pub mod plot;

@@ -1,8 +1,10 @@
 //! `hexapod average`: the weight average of several checkpoints of one run (stochastic
 //! weight averaging), written as a checkpoint (`checkpoint_average`).
 //!
-//!     hexapod average --run runs/terrain-descend --from 24050 --to 25000 --out DIR
-//!     hexapod average --out DIR runs/x/checkpoints/model_001000 runs/x/checkpoints/model_001050
+//! ```text
+//! hexapod average --run runs/terrain-descend --from 24050 --to 25000 --out DIR
+//! hexapod average --out DIR runs/x/checkpoints/model_001000 runs/x/checkpoints/model_001050
+//! ```
 
 use crate::checkpoint_average::{average, run_checkpoints_between};
 use anyhow::{bail, Context};

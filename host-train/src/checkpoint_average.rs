@@ -5,7 +5,8 @@
 //! Successive checkpoints of a PPO run wander around a region of similar returns; on the
 //! terrain suite two checkpoints 250 iterations apart differ by up to 13 of 280 trials
 //! (`assets/reports/terrain-stages`, stage 11's path). Their mean sits nearer the middle of
-//! that region. Every tensor of `policy.safetensors` is averaged (networks and observation
+//! that region; there it beat every checkpoint of one training seed and tied the last one of
+//! another. Every tensor of `policy.safetensors` is averaged (networks and observation
 //! normalizers alike), summed in f64 in the order given and divided once; the config and
 //! the runner state are the last checkpoint's, the optimizer state is left out (a run
 //! resumed from the average starts its Adam moments afresh), and `average.json` names the

@@ -369,10 +369,40 @@ pub fn load_for_inference(dir: &Path) -> Result<(TrainConfig, Ppo), CheckpointEr
     Ok((cfg, ppo))
 }
 
+/// Tiny learners and scratch directories for the checkpoint tests.
+#[cfg(test)]
+pub(crate) mod test_support {
+    use crate::config::{EnvKind, PriorKind, TrainConfig};
+    use std::path::PathBuf;
+
+    /// A config of tiny networks (8 units) on the fake environment, with `actor_hidden`
+    /// units in the actor's one hidden layer.
+    pub fn tiny_config(actor_hidden: usize) -> TrainConfig {
+        let mut c = TrainConfig::default();
+        c.env.kind = EnvKind::Fake;
+        c.env.num_envs = 4;
+        c.policy.estimator_hidden = vec![8];
+        c.policy.memory_hidden = vec![8];
+        c.policy.actor_hidden = vec![actor_hidden];
+        c.policy.critic_hidden = vec![8];
+        c.policy.terrain_encoder_hidden = vec![8];
+        c.policy.privileged_encoder_hidden = vec![8];
+        c.amp.discriminator_hidden = vec![8];
+        c.amp.prior_kind = PriorKind::Synthetic;
+        c
+    }
+
+    /// An empty scratch directory path under the system's temporary directory.
+    pub fn tmpdir(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("hexapod-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        d
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::{EnvKind, PriorKind};
 
     #[test]
     fn a_config_saved_now_names_the_foot_friction_setting() {
@@ -382,24 +412,11 @@ mod tests {
     }
 
     fn tiny() -> TrainConfig {
-        let mut c = TrainConfig::default();
-        c.env.kind = EnvKind::Fake;
-        c.env.num_envs = 4;
-        c.policy.estimator_hidden = vec![8];
-        c.policy.memory_hidden = vec![8];
-        c.policy.actor_hidden = vec![8];
-        c.policy.critic_hidden = vec![8];
-        c.policy.terrain_encoder_hidden = vec![8];
-        c.policy.privileged_encoder_hidden = vec![8];
-        c.amp.discriminator_hidden = vec![8];
-        c.amp.prior_kind = PriorKind::Synthetic;
-        c
+        test_support::tiny_config(8)
     }
 
     fn tmpdir(name: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("hexapod-ckpt-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        d
+        test_support::tmpdir(&format!("ckpt-{name}"))
     }
 
     #[test]

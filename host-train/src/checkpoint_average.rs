@@ -165,28 +165,15 @@ fn write(
 mod tests {
     use super::*;
     use crate::algo::ppo::Ppo;
-    use crate::checkpoint::{load, save};
-    use crate::config::{EnvKind, PriorKind, TrainConfig};
+    use crate::checkpoint::{load, save, test_support};
+    use crate::config::TrainConfig;
 
     fn tiny(actor_hidden: usize) -> TrainConfig {
-        let mut c = TrainConfig::default();
-        c.env.kind = EnvKind::Fake;
-        c.env.num_envs = 4;
-        c.policy.estimator_hidden = vec![8];
-        c.policy.memory_hidden = vec![8];
-        c.policy.actor_hidden = vec![actor_hidden];
-        c.policy.critic_hidden = vec![8];
-        c.policy.terrain_encoder_hidden = vec![8];
-        c.policy.privileged_encoder_hidden = vec![8];
-        c.amp.discriminator_hidden = vec![8];
-        c.amp.prior_kind = PriorKind::Synthetic;
-        c
+        test_support::tiny_config(actor_hidden)
     }
 
     fn tmpdir(name: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("hexapod-avg-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        d
+        test_support::tmpdir(&format!("avg-{name}"))
     }
 
     fn values(dir: &Path) -> HashMap<String, Vec<f32>> {

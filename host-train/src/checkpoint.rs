@@ -114,11 +114,28 @@ pub fn save(dir: &Path, ppo: &Ppo, iteration: usize) -> Result<(), CheckpointErr
 /// Writes a checkpoint of `ppo` with the runner's `state` into `dir` (replacing it
 /// atomically).
 pub fn save_with_state(dir: &Path, ppo: &Ppo, run_state: &RunState) -> Result<(), CheckpointError> {
+    write_atomically(dir, |tmp| write_files(tmp, ppo, run_state))
+}
+
+/// Fills a fresh `<dir>.tmp` with `fill`, then puts it in place of `dir`: a reader never
+/// sees a half-written checkpoint, and on an error `dir` is left as it was.
+pub(crate) fn write_atomically(
+    dir: &Path,
+    fill: impl FnOnce(&Path) -> Result<(), CheckpointError>,
+) -> Result<(), CheckpointError> {
     let tmp: PathBuf = dir.with_extension("tmp");
     if tmp.exists() {
         std::fs::remove_dir_all(&tmp).map_err(io(&tmp))?;
     }
     std::fs::create_dir_all(&tmp).map_err(io(&tmp))?;
+    fill(&tmp)?;
+    if dir.exists() {
+        std::fs::remove_dir_all(dir).map_err(io(dir))?;
+    }
+    std::fs::rename(&tmp, dir).map_err(io(dir))
+}
+
+fn write_files(tmp: &Path, ppo: &Ppo, run_state: &RunState) -> Result<(), CheckpointError> {
     let weights = collect(&[&ppo.params, &ppo.stats, &ppo.disc_params]);
     let policy_path = tmp.join(POLICY_FILE);
     candle_core::safetensors::save(&weights, &policy_path).map_err(|e| {
@@ -131,12 +148,12 @@ pub fn save_with_state(dir: &Path, ppo: &Ppo, run_state: &RunState) -> Result<()
     let state = ppo
         .opt
         .state("optimizer.policy")
-        .map_err(|e| malformed(&tmp, e))?;
+        .map_err(|e| malformed(tmp, e))?;
     opt.extend(state);
     if let Some(d) = &ppo.disc_opt {
         opt.extend(
             d.state("optimizer.discriminator")
-                .map_err(|e| malformed(&tmp, e))?,
+                .map_err(|e| malformed(tmp, e))?,
         );
     }
     let opt_path = tmp.join(OPTIMIZER_FILE);
@@ -145,11 +162,7 @@ pub fn save_with_state(dir: &Path, ppo: &Ppo, run_state: &RunState) -> Result<()
     std::fs::write(&cfg_path, ppo.cfg.to_toml_string()).map_err(io(&cfg_path))?;
     let state_path = tmp.join(STATE_FILE);
     let state_json = serde_json::to_string(run_state).map_err(|e| malformed(&state_path, e))?;
-    std::fs::write(&state_path, state_json + "\n").map_err(io(&state_path))?;
-    if dir.exists() {
-        std::fs::remove_dir_all(dir).map_err(io(dir))?;
-    }
-    std::fs::rename(&tmp, dir).map_err(io(dir))
+    std::fs::write(&state_path, state_json + "\n").map_err(io(&state_path))
 }
 
 pub(crate) fn malformed(path: &Path, e: impl ToString) -> CheckpointError {
@@ -163,26 +176,38 @@ pub(crate) fn malformed(path: &Path, e: impl ToString) -> CheckpointError {
 /// `policy.safetensors`, or, for
 /// a run directory (`runs/<name>`, with `checkpoints/model_NNNNNN`), its latest checkpoint.
 pub fn resolve_dir(path: &Path) -> Result<std::path::PathBuf, CheckpointError> {
-    let is_checkpoint =
-        |p: &Path| p.join("config.toml").is_file() && p.join("policy.safetensors").is_file();
     if is_checkpoint(path) {
         return Ok(path.to_path_buf());
     }
-    let checkpoints = path.join("checkpoints");
-    let latest = std::fs::read_dir(&checkpoints).ok().and_then(|entries| {
-        entries
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| is_checkpoint(p))
-            .filter(|p| {
-                p.file_name()
-                    .is_some_and(|n| n.to_string_lossy().starts_with("model_"))
-            })
-            .max()
-    });
+    let latest = run_checkpoints(path).pop().map(|(_, p)| p);
     latest.ok_or_else(|| CheckpointError::Malformed {
         path: path.display().to_string(),
         message: "neither a checkpoint (config.toml, policy.safetensors) nor a run directory with checkpoints/model_NNNNNN".into(),
     })
+}
+
+fn is_checkpoint(dir: &Path) -> bool {
+    dir.join(CONFIG_FILE).is_file() && dir.join(POLICY_FILE).is_file()
+}
+
+/// A run directory's checkpoints, `<run>/checkpoints/model_NNNNNN` holding `config.toml` and
+/// `policy.safetensors`, with their iterations, in iteration order (none when the run has no
+/// readable `checkpoints/`).
+pub fn run_checkpoints(run: &Path) -> Vec<(usize, PathBuf)> {
+    let Ok(entries) = std::fs::read_dir(run.join("checkpoints")) else {
+        return Vec::new();
+    };
+    let mut found: Vec<(usize, PathBuf)> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| is_checkpoint(p))
+        .filter_map(|p| {
+            let name = p.file_name()?.to_string_lossy().into_owned();
+            let iteration = name.strip_prefix("model_")?.parse().ok()?;
+            Some((iteration, p))
+        })
+        .collect();
+    found.sort();
+    found
 }
 
 /// The run (or report) a checkpoint belongs to, and its model name:

@@ -13,8 +13,8 @@
 //! checkpoints averaged.
 
 use crate::checkpoint::{
-    io, load_config, load_state, malformed, read_tensors, same_networks, CheckpointError,
-    CONFIG_FILE, POLICY_FILE, STATE_FILE,
+    io, load_config, load_state, malformed, read_tensors, run_checkpoints, same_networks,
+    write_atomically, CheckpointError, CONFIG_FILE, POLICY_FILE, STATE_FILE,
 };
 use candle_core::{DType, Device, Tensor};
 use std::collections::HashMap;
@@ -39,24 +39,18 @@ pub fn run_checkpoints_between(
     from: usize,
     to: usize,
 ) -> Result<Vec<PathBuf>, CheckpointError> {
-    let dir = run.join("checkpoints");
-    let entries = std::fs::read_dir(&dir).map_err(io(&dir))?;
-    let mut found: Vec<(usize, PathBuf)> = entries
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter_map(|p| {
-            let name = p.file_name()?.to_string_lossy().into_owned();
-            let iteration: usize = name.strip_prefix("model_")?.parse().ok()?;
-            (from..=to).contains(&iteration).then_some((iteration, p))
-        })
+    let found: Vec<PathBuf> = run_checkpoints(run)
+        .into_iter()
+        .filter(|(iteration, _)| (from..=to).contains(iteration))
+        .map(|(_, p)| p)
         .collect();
-    found.sort();
     if found.is_empty() {
         return Err(malformed(
-            &dir,
+            &run.join("checkpoints"),
             format!("no checkpoint model_NNNNNN with an iteration in {from}..={to}"),
         ));
     }
-    Ok(found.into_iter().map(|(_, p)| p).collect())
+    Ok(found)
 }
 
 /// Averages the checkpoints `dirs` (at least one, all with the same networks) into `out`,
@@ -142,23 +136,16 @@ fn write(
     mean: &HashMap<String, Tensor>,
     record: &AverageRecord,
 ) -> Result<(), CheckpointError> {
-    let tmp = out.with_extension("tmp");
-    if tmp.exists() {
-        std::fs::remove_dir_all(&tmp).map_err(io(&tmp))?;
-    }
-    std::fs::create_dir_all(&tmp).map_err(io(&tmp))?;
-    let policy = tmp.join(POLICY_FILE);
-    candle_core::safetensors::save(mean, &policy).map_err(|e| malformed(&policy, e))?;
-    for file in [CONFIG_FILE, STATE_FILE] {
-        std::fs::copy(last.join(file), tmp.join(file)).map_err(io(&last.join(file)))?;
-    }
-    let record_path = tmp.join(AVERAGE_FILE);
-    let text = serde_json::to_string_pretty(record).map_err(|e| malformed(&record_path, e))?;
-    std::fs::write(&record_path, text + "\n").map_err(io(&record_path))?;
-    if out.exists() {
-        std::fs::remove_dir_all(out).map_err(io(out))?;
-    }
-    std::fs::rename(&tmp, out).map_err(io(out))
+    write_atomically(out, |tmp| {
+        let policy = tmp.join(POLICY_FILE);
+        candle_core::safetensors::save(mean, &policy).map_err(|e| malformed(&policy, e))?;
+        for file in [CONFIG_FILE, STATE_FILE] {
+            std::fs::copy(last.join(file), tmp.join(file)).map_err(io(&last.join(file)))?;
+        }
+        let record_path = tmp.join(AVERAGE_FILE);
+        let text = serde_json::to_string_pretty(record).map_err(|e| malformed(&record_path, e))?;
+        std::fs::write(&record_path, text + "\n").map_err(io(&record_path))
+    })
 }
 
 #[cfg(test)]

@@ -1,7 +1,9 @@
 //! `hexapod eval --suite paper`: the paper's experiments as one reproducible report, for one
 //! or several checkpoints side by side. Protocols: `push` (velocity-disturbance tolerance,
 //! Table III), `terrain` (stairs and slopes, Fig. 5), `step` (the outdoor 15 cm step),
-//! `sine` (sinusoidal commands, Fig. 3), `curriculum` (terrain row over training, Fig. 4).
+//! `beyond` (25 cm stairs, 35 deg slopes), `friction` (the 30 deg ramp and 20 cm stairs at
+//! fixed foot friction), `sine` (sinusoidal commands, Fig. 3), `curriculum` (terrain row over
+//! training, Fig. 4).
 //!
 //! Beside checkpoints, the model-based MPC ([`crate::mpc`], `--mpc [params.toml]`) runs as a
 //! controller of its own (under the default config's randomization; `curriculum` does not
@@ -14,6 +16,7 @@
 pub mod batch;
 pub mod controller;
 pub mod curriculum;
+pub mod friction;
 pub mod plots;
 pub mod push;
 pub mod report;
@@ -34,8 +37,17 @@ use std::time::Instant;
 /// Suites known.
 pub const SUITES: [&str; 1] = ["paper"];
 /// Protocols of the paper suite, in the order they run.
-/// `beyond` walks the terrain test's 25 cm stairs and 35 deg slopes, past the paper's range.
-pub const PROTOCOLS: [&str; 6] = ["push", "terrain", "step", "beyond", "sine", "curriculum"];
+/// `beyond` walks the terrain test's 25 cm stairs and 35 deg slopes, past the paper's range;
+/// `friction` walks its 30 deg ramp and 20 cm stairs at fixed foot friction coefficients.
+pub const PROTOCOLS: [&str; 7] = [
+    "push",
+    "terrain",
+    "step",
+    "beyond",
+    "friction",
+    "sine",
+    "curriculum",
+];
 /// Trials per test point (the paper: 10).
 pub const TRIALS: usize = 10;
 /// Trials per test point in the quick variant.
@@ -198,6 +210,7 @@ pub fn run(o: &SuiteOptions) -> anyhow::Result<()> {
             push: None,
             terrain: None,
             beyond_paper: None,
+            friction_sweep: None,
             sine: None,
             curriculum: None,
             wall_clock_s: BTreeMap::new(),
@@ -240,6 +253,11 @@ pub fn run(o: &SuiteOptions) -> anyhow::Result<()> {
             let t = Instant::now();
             r.beyond_paper = Some(terrain::run_beyond(&c.cfg, c.policy.as_mut(), &conditions)?);
             time(&mut r, "beyond", t);
+        }
+        if protocols.contains(&"friction") {
+            let t = Instant::now();
+            r.friction_sweep = Some(friction::run(&c.cfg, c.policy.as_mut(), &conditions)?);
+            time(&mut r, "friction", t);
         }
         if protocols.contains(&"sine") {
             let t = Instant::now();

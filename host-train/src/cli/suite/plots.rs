@@ -95,6 +95,52 @@ pub fn draw_all(dir: &Path, reports: &[ControllerReport]) -> Result<Vec<PathBuf>
             single(&out(file), panel)?;
         }
     }
+    // The friction sweep: success rate against foot friction, one panel per feature.
+    let sweeps: Vec<(usize, &ControllerReport, &[super::friction::FrictionPoint])> = reports
+        .iter()
+        .enumerate()
+        .filter_map(|(i, r)| Some((i, r, r.friction_sweep.as_deref()?)))
+        .collect();
+    if let Some((_, _, first)) = sweeps.first().filter(|(_, _, s)| !s.is_empty()) {
+        let panels: Vec<Panel> = first[0]
+            .features
+            .iter()
+            .enumerate()
+            .map(|(k, feature)| {
+                let mut panel = Panel::new(
+                    format!("{}: success rate", feature.name),
+                    "foot friction coefficient",
+                    "success rate",
+                )
+                .y_range(-0.02, 1.05);
+                if let host_sim::course::Feature::SlopeUp { slope_deg } = feature.feature {
+                    let bound = super::friction::least_friction_to_stand(slope_deg) as f64;
+                    panel = panel.line(Line::new(
+                        format!("tan {slope_deg:.0} deg (no robot stands below)"),
+                        vec![(bound, 0.0), (bound, 1.0)],
+                        BLACK,
+                    ));
+                }
+                sweeps.iter().fold(panel, |panel, (i, r, points)| {
+                    let line: Vec<(f64, f64)> = points
+                        .iter()
+                        .filter_map(|p| {
+                            Some((p.foot_friction as f64, p.features.get(k)?.success_rate()))
+                        })
+                        .collect();
+                    panel.line(Line::new(r.name.as_str(), line, color(*i)).with_markers())
+                })
+            })
+            .collect();
+        write_panels(
+            &out("success_friction.png"),
+            None,
+            panels.len(),
+            (800, 540),
+            &panels,
+        )
+        .map_err(|e| format!("success_friction.png: {e}"))?;
+    }
     // Fig. 3: per command axis, four stacked panels.
     for axis in 0..super::sine::AXES.len() {
         let runs: Vec<(usize, &ControllerReport, &super::sine::SineRun)> = reports

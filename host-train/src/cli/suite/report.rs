@@ -4,6 +4,7 @@
 
 use super::batch::{Conditions, SUITE_FRICTION};
 use super::curriculum::CurriculumResult;
+use super::friction::{self, FrictionPoint};
 use super::push::{self, Axis, Gait, PushResult, Tolerance};
 use super::sine::SineRun;
 use super::terrain::{self, FeatureResult, TerrainResult};
@@ -39,6 +40,8 @@ pub struct ControllerReport {
     pub terrain: Option<TerrainResult>,
     /// The terrain test beyond the paper's range (25 cm stairs, 35 deg slopes).
     pub beyond_paper: Option<Vec<FeatureResult>>,
+    /// The 30 deg ramp and 20 cm stairs at fixed foot friction coefficients.
+    pub friction_sweep: Option<Vec<FrictionPoint>>,
     /// Sinusoidal commands.
     pub sine: Option<Vec<SineRun>>,
     /// Curriculum.
@@ -204,6 +207,7 @@ impl SuiteReport {
         self.push_section(&mut s);
         self.terrain_section(&mut s);
         self.beyond_section(&mut s);
+        self.friction_section(&mut s);
         self.sine_section(&mut s);
         self.curriculum_section(&mut s);
         let _ = writeln!(
@@ -464,6 +468,64 @@ impl SuiteReport {
                 .join(", "),
         );
         feature_rows(s, &columns);
+        let _ = writeln!(s);
+    }
+
+    fn friction_section(&self, s: &mut String) {
+        let runs: Vec<(&str, &[FrictionPoint])> = self
+            .controllers
+            .iter()
+            .filter_map(|c| Some((c.name.as_str(), c.friction_sweep.as_deref()?)))
+            .collect();
+        let Some((_, first)) = runs.first() else {
+            return;
+        };
+        let Some(point) = first.first() else {
+            return;
+        };
+        let _ = writeln!(
+            s,
+            "## Foot friction on the hardest climbs\n\n\
+             The terrain test's protocol on its {:.0} deg ramp and {:.2} m stairs, every robot at one foot friction \
+             coefficient per row: trial k is the same robot on every row, only the friction changes. Below \
+             tan {:.0} deg = {:.3} no robot stands on the ramp. Cells: successes of trials (mean distance along the \
+             command, m).\n",
+            friction::SWEEP_SLOPE_DEG,
+            friction::SWEEP_STEP_M,
+            friction::SWEEP_SLOPE_DEG,
+            friction::least_friction_to_stand(friction::SWEEP_SLOPE_DEG),
+        );
+        let headers: Vec<String> = runs
+            .iter()
+            .flat_map(|(name, _)| {
+                point
+                    .features
+                    .iter()
+                    .map(move |f| format!("{name}: {}", f.name))
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "| foot friction | {} |\n|---|{}",
+            headers.join(" | "),
+            "---|".repeat(headers.len())
+        );
+        for (k, p) in first.iter().enumerate() {
+            let cells: Vec<String> = runs
+                .iter()
+                .flat_map(|(_, points)| {
+                    let n = point.features.len();
+                    (0..n).map(move |f| {
+                        points
+                            .get(k)
+                            .and_then(|p| p.features.get(f))
+                            .map(cell)
+                            .unwrap_or_else(|| "-".into())
+                    })
+                })
+                .collect();
+            let _ = writeln!(s, "| {:.2} | {} |", p.foot_friction, cells.join(" | "));
+        }
         let _ = writeln!(s);
     }
 

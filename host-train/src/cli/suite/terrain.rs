@@ -147,7 +147,7 @@ fn all_lanes(quick: bool) -> Vec<Lane> {
 }
 
 /// One lane per (feature, command), numbered in course order.
-fn lanes_in_order(features: impl IntoIterator<Item = (Feature, [f32; 3])>) -> Vec<Lane> {
+pub(super) fn lanes_in_order(features: impl IntoIterator<Item = (Feature, [f32; 3])>) -> Vec<Lane> {
     features
         .into_iter()
         .enumerate()
@@ -219,7 +219,7 @@ pub fn run_beyond(
 }
 
 /// Walks `c.trials` robots per lane of `course` for [`DURATION_S`]; one result per lane.
-fn run_lanes(
+pub(super) fn run_lanes(
     cfg: &TrainConfig,
     controller: &mut dyn SuiteController,
     c: &Conditions,

@@ -240,3 +240,67 @@ fn a_spawn_pose_moves_the_robot_not_its_random_draws() {
     c.reset();
     assert_eq!(c.total_mass_kg(1), a.total_mass_kg(0));
 }
+
+/// A robot holding its default pose on the 30 deg ramp, every randomization at its nominal
+/// value but the foot friction; its base x after 1 s (landed) and after 5 s.
+fn hold_pose_on_the_30_deg_ramp(foot_friction: f32) -> (f32, f32, f32) {
+    let course = Course::new(&[Feature::SlopeUp { slope_deg: 30.0 }]);
+    let mut cfg = EnvConfig {
+        num_envs: 1,
+        observation_noise: false,
+        curriculum: false,
+        ..Default::default()
+    };
+    cfg.push.enabled = false;
+    let r = &mut cfg.randomization;
+    r.enabled = true;
+    r.stiffness_factor = [1.0, 1.0];
+    r.damping_factor = [1.0, 1.0];
+    r.initial_joint_pos_factor = [1.0, 1.0];
+    r.link_mass_factor = [1.0, 1.0];
+    r.payload_kg = [0.0, 0.0];
+    r.motor_strength = [1.0, 1.0];
+    r.friction = [foot_friction, foot_friction];
+    let mut env = HexapodEnv::with_terrain(cfg, course.terrain().clone()).unwrap();
+    let on_ramp_x_m = course.feature_edge_x_m() + 1.2;
+    env.set_spawn_pose(
+        0,
+        Some(SpawnPose {
+            position_m: [on_ramp_x_m, course.lane_center_y_m(0)],
+            yaw_rad: 0.0,
+        }),
+    );
+    env.reset();
+    let mut landed_x_m = 0.0;
+    for step in 0..250 {
+        let r = env.step(&[0.0; NUM_JOINTS]);
+        assert!(
+            !r.dones[0],
+            "fell at step {step} (friction {foot_friction})"
+        );
+        if step == 49 {
+            landed_x_m = env.robot_state(0).base_pos_world_m[0];
+        }
+    }
+    let end_x_m = env.robot_state(0).base_pos_world_m[0];
+    (landed_x_m, end_x_m, course.feature_edge_x_m())
+}
+
+/// Friction holds a standing robot on a ramp where physics says it should and lets it go
+/// where it should not: above tan 30 deg = 0.577 the robot, once landed (it spawns level and
+/// drops onto the ramp), stays put; at 0.5 it slides down the 1.2 m to the ramp's foot,
+/// where its front legs reach the flat.
+#[test]
+fn the_30_deg_ramp_holds_a_standing_robot_only_above_tan_30_deg() {
+    let (landed, end, _) = hold_pose_on_the_30_deg_ramp(0.7);
+    assert!(
+        (end - landed).abs() < 0.005,
+        "friction 0.7: slid {:.3} m after landing",
+        end - landed
+    );
+    let (_, end, ramp_start_x_m) = hold_pose_on_the_30_deg_ramp(0.5);
+    assert!(
+        end < ramp_start_x_m + 0.3,
+        "friction 0.5: base at {end:.2} m, the ramp starts at {ramp_start_x_m:.2} m"
+    );
+}

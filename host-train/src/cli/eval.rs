@@ -67,7 +67,7 @@ pub struct EvalArgs {
     #[arg(long, requires = "out")]
     pub suite: Option<String>,
     /// The suite's protocols to run, comma-separated (default all: push, terrain, step,
-    /// sine, curriculum).
+    /// beyond, friction, sine, curriculum).
     #[arg(long, value_delimiter = ',', requires = "suite")]
     pub protocol: Vec<String>,
     /// The suite's quick variant (2 trials, one feature per terrain kind, one bisection round).
@@ -79,6 +79,10 @@ pub struct EvalArgs {
     /// Seed of the suite.
     #[arg(long, default_value_t = 1, requires = "suite")]
     pub seed: u64,
+    /// Length of each trial of the suite's terrain, step, beyond and friction tests, s
+    /// (default 10, the protocol's): longer shows whether a slow climber gets there with time.
+    #[arg(long, requires = "suite")]
+    pub terrain_duration_s: Option<f32>,
     /// Environment override (`sim` or `fake`).
     #[arg(long, value_parser = ["sim", "fake"])]
     pub env: Option<String>,
@@ -614,6 +618,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             quick: args.quick,
             trials: args.trials,
             seed: args.seed,
+            terrain_duration_s: args.terrain_duration_s,
         });
     }
     let [checkpoint] = args.checkpoint.as_slice() else {

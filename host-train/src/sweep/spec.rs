@@ -250,6 +250,7 @@ impl Sweep {
             quick: e.quick,
             trials: e.trials,
             seed: e.seed,
+            terrain_duration_s: None,
         }
     }
 }

@@ -36,6 +36,8 @@ pub struct Conditions {
     pub random_pushes: bool,
     /// Actions: the policy's mean (deterministic), not samples.
     pub deterministic_policy: bool,
+    /// Length of each trial of the terrain, step, beyond and friction tests, s.
+    pub terrain_duration_s: f32,
 }
 
 impl Conditions {
@@ -53,6 +55,7 @@ impl Conditions {
             max_tilt_deg: sim.max_tilt_deg,
             random_pushes: false,
             deterministic_policy: true,
+            terrain_duration_s: super::terrain::DURATION_S,
         }
     }
 

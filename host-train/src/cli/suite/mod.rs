@@ -54,6 +54,8 @@ pub const TRIALS: usize = 10;
 pub const QUICK_TRIALS: usize = 2;
 /// Bisection of the push protocol: rounds and magnitudes per bracket per round.
 pub const PUSH_SEARCH: (usize, usize) = (3, 3);
+/// Longest terrain trial the suite runs, s.
+pub const MAX_TERRAIN_DURATION_S: f32 = 60.0;
 /// The quick variant's push search.
 pub const QUICK_PUSH_SEARCH: (usize, usize) = (1, 1);
 
@@ -77,6 +79,8 @@ pub struct SuiteOptions {
     pub trials: Option<usize>,
     /// Seed.
     pub seed: u64,
+    /// Length of each terrain trial, s (default [`terrain::DURATION_S`]).
+    pub terrain_duration_s: Option<f32>,
 }
 
 /// Checks the options; returns the protocols to run, in run order.
@@ -95,6 +99,11 @@ pub fn validate(o: &SuiteOptions) -> anyhow::Result<Vec<&'static str>> {
     }
     if o.trials == Some(0) {
         bail!("--trials must be at least 1");
+    }
+    if let Some(d) = o.terrain_duration_s {
+        if !(d > 0.0 && d <= MAX_TERRAIN_DURATION_S) {
+            bail!("--terrain-duration-s must be in (0, {MAX_TERRAIN_DURATION_S}] s, got {d}");
+        }
     }
     if o.checkpoints.is_empty() && o.mpc.is_none() {
         bail!("give at least one --checkpoint or --mpc");
@@ -197,7 +206,10 @@ pub fn run(o: &SuiteOptions) -> anyhow::Result<()> {
     };
     let mut reports = Vec::new();
     for c in &mut controllers {
-        let conditions = Conditions::new(&c.cfg, o.seed, trials, o.quick);
+        let mut conditions = Conditions::new(&c.cfg, o.seed, trials, o.quick);
+        if let Some(d) = o.terrain_duration_s {
+            conditions.terrain_duration_s = d;
+        }
         let mut r = ControllerReport {
             name: c.name.clone(),
             checkpoint: c.source.clone(),
@@ -360,6 +372,7 @@ mod tests {
             quick: true,
             trials: None,
             seed: 1,
+            terrain_duration_s: None,
         }
     }
 
@@ -381,6 +394,12 @@ mod tests {
         let mut o = opts();
         o.trials = Some(0);
         assert!(validate(&o).unwrap_err().to_string().contains("--trials"));
+        for bad in [0.0, -1.0, 61.0, f32::NAN] {
+            let mut o = opts();
+            o.terrain_duration_s = Some(bad);
+            let e = validate(&o).unwrap_err().to_string();
+            assert!(e.contains("--terrain-duration-s"), "{e}");
+        }
         let mut o = opts();
         o.protocols = vec!["sine".into(), "push".into()];
         assert_eq!(validate(&o).unwrap(), vec!["push", "sine"]);

@@ -20,7 +20,7 @@ pub const QUICK_STEP_M: f32 = 0.10;
 pub const QUICK_SLOPE_DEG: f32 = 15.0;
 /// Command of the terrain test (vx, vy, wz).
 pub const TERRAIN_COMMAND: [f32; 3] = [0.3, 0.0, 0.0];
-/// Length of each trial, s.
+/// Length of each trial, s (`Conditions::terrain_duration_s` may change it).
 pub const DURATION_S: f32 = 10.0;
 /// Distance along the command a successful trial covers, m.
 pub const SUCCESS_DISTANCE_M: f32 = 2.0;
@@ -198,7 +198,7 @@ pub fn run(
     let mut results = run_lanes(cfg, controller, c, &course(c.quick), &lanes)?;
     let outdoor_step = if step { results.pop() } else { None };
     Ok(TerrainResult {
-        duration_s: DURATION_S,
+        duration_s: c.terrain_duration_s,
         success_distance_m: SUCCESS_DISTANCE_M,
         run_up_m: host_sim::course::RUN_UP_M,
         features: results,
@@ -218,7 +218,7 @@ pub fn run_beyond(
     run_lanes(cfg, controller, c, &Course::new(&features), &lanes)
 }
 
-/// Walks `c.trials` robots per lane of `course` for [`DURATION_S`]; one result per lane.
+/// Walks `c.trials` robots per lane of `course` for `c.terrain_duration_s`; one result per lane.
 pub(super) fn run_lanes(
     cfg: &TrainConfig,
     controller: &mut dyn SuiteController,
@@ -227,8 +227,10 @@ pub(super) fn run_lanes(
     lanes: &[Lane],
 ) -> anyhow::Result<Vec<FeatureResult>> {
     let n = c.robots(lanes.len());
-    let mut env =
-        HexapodEnv::with_terrain(c.sim_config(cfg, n, DURATION_S), course.terrain().clone())?;
+    let mut env = HexapodEnv::with_terrain(
+        c.sim_config(cfg, n, c.terrain_duration_s),
+        course.terrain().clone(),
+    )?;
     seed_trials(&mut env, c);
     let lane_of = |i: usize| i / c.trials;
     let starts: Vec<_> = (0..n)
@@ -243,7 +245,7 @@ pub(super) fn run_lanes(
     drive(
         &mut env,
         controller,
-        steps(DURATION_S),
+        steps(c.terrain_duration_s),
         |step, env, commands| {
             if step == 0 {
                 // The draw of the trial's robot (a robot that falls is reset with another).

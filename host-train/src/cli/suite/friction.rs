@@ -10,9 +10,9 @@
 
 use super::batch::Conditions;
 use super::controller::SuiteController;
-use super::terrain::{lanes_in_order, run_lanes, FeatureResult, TERRAIN_COMMAND};
+use super::terrain::{run_on_own_course, FeatureResult};
 use crate::config::TrainConfig;
-use host_sim::course::{Course, Feature};
+use host_sim::course::Feature;
 use serde::Serialize;
 
 /// Foot friction coefficients tried (the training range is [0.1, 2.5]).
@@ -68,17 +68,14 @@ pub fn run(
     c: &Conditions,
 ) -> anyhow::Result<Vec<FrictionPoint>> {
     let features = features();
-    let lanes = lanes_in_order(features.iter().map(|&f| (f, TERRAIN_COMMAND)));
-    let course = Course::new(&features);
     sweep(c.quick)
         .iter()
         .map(|&mu| {
             let mut at = c.clone();
             at.randomization.friction = [mu, mu];
-            let features = run_lanes(cfg, controller, &at, &course, &lanes)?;
             Ok(FrictionPoint {
                 foot_friction: mu,
-                features,
+                features: run_on_own_course(cfg, controller, &at, &features)?,
             })
         })
         .collect()

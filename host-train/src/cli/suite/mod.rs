@@ -54,10 +54,10 @@ pub const TRIALS: usize = 10;
 pub const QUICK_TRIALS: usize = 2;
 /// Bisection of the push protocol: rounds and magnitudes per bracket per round.
 pub const PUSH_SEARCH: (usize, usize) = (3, 3);
-/// Longest terrain trial the suite runs, s.
-pub const MAX_TERRAIN_DURATION_S: f32 = 60.0;
 /// The quick variant's push search.
 pub const QUICK_PUSH_SEARCH: (usize, usize) = (1, 1);
+/// Longest terrain trial the suite runs, s.
+pub const MAX_TERRAIN_DURATION_S: f32 = 60.0;
 
 /// What `hexapod eval --suite` was asked for.
 #[derive(Clone, Debug)]

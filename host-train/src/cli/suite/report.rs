@@ -192,7 +192,8 @@ impl SuiteReport {
                  payload [{}, {}] kg within +-{} m, initial joints x[{}, {}], foot friction [{}, {}] (training: \
                  [0.1, 2.5]; below tan 30 deg = 0.58 no robot stands on the 30 deg ramp). The environment's own \
                  random pushes are off. Fall (the simulator's termination): trunk contact with the ground or tilt \
-                 beyond {} deg. Each trial of the terrain, step, beyond and friction tests lasts {} s{}.\n",
+                 beyond {} deg. Each trial of the terrain, step, beyond and friction tests lasts {} s (the \
+                 protocol's: {} s).\n",
                 k.seed,
                 k.trials,
                 if k.quick { ", the quick variant (fewer trials and test points)" } else { "" },
@@ -203,7 +204,7 @@ impl SuiteReport {
                 r.initial_joint_pos_factor[0], r.initial_joint_pos_factor[1], SUITE_FRICTION[0], SUITE_FRICTION[1],
                 k.max_tilt_deg,
                 k.terrain_duration_s,
-                if k.terrain_duration_s == terrain::DURATION_S { " (the protocol's)" } else { " (the protocol's: 10 s)" },
+                terrain::DURATION_S,
             );
         }
         self.push_section(&mut s);

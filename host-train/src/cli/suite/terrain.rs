@@ -147,7 +147,7 @@ fn all_lanes(quick: bool) -> Vec<Lane> {
 }
 
 /// One lane per (feature, command), numbered in course order.
-pub(super) fn lanes_in_order(features: impl IntoIterator<Item = (Feature, [f32; 3])>) -> Vec<Lane> {
+fn lanes_in_order(features: impl IntoIterator<Item = (Feature, [f32; 3])>) -> Vec<Lane> {
     features
         .into_iter()
         .enumerate()
@@ -213,13 +213,23 @@ pub fn run_beyond(
     controller: &mut dyn SuiteController,
     c: &Conditions,
 ) -> anyhow::Result<Vec<FeatureResult>> {
-    let features = beyond_features();
+    run_on_own_course(cfg, controller, c, &beyond_features())
+}
+
+/// Walks `features` on a course of their own, one lane each, with the terrain test's
+/// command, duration and success rule; one result per feature.
+pub(super) fn run_on_own_course(
+    cfg: &TrainConfig,
+    controller: &mut dyn SuiteController,
+    c: &Conditions,
+    features: &[Feature],
+) -> anyhow::Result<Vec<FeatureResult>> {
     let lanes = lanes_in_order(features.iter().map(|&f| (f, TERRAIN_COMMAND)));
-    run_lanes(cfg, controller, c, &Course::new(&features), &lanes)
+    run_lanes(cfg, controller, c, &Course::new(features), &lanes)
 }
 
 /// Walks `c.trials` robots per lane of `course` for `c.terrain_duration_s`; one result per lane.
-pub(super) fn run_lanes(
+fn run_lanes(
     cfg: &TrainConfig,
     controller: &mut dyn SuiteController,
     c: &Conditions,

@@ -415,7 +415,7 @@ impl TrainConfig {
     /// [`TrainConfig::load`], then `overrides` (`section.key=value`, the value in TOML
     /// syntax; a bare word is taken as a string) applied over the layered file.
     pub fn load_with_overrides(path: &Path, overrides: &[String]) -> Result<Self, ConfigError> {
-        let mut table = load_layered(path, 0)?;
+        let mut table = load_layered(path, &mut Vec::new())?;
         let origin = path.display().to_string();
         for o in overrides {
             apply_override(&mut table, o).map_err(|message| ConfigError::Parse {
@@ -545,18 +545,34 @@ pub fn resolve_path(path: &str) -> std::path::PathBuf {
     }
 }
 
-/// Deepest chain of `base` presets followed (a loop is refused at this depth).
-const MAX_BASE_DEPTH: usize = 8;
-
-/// The TOML table of `path` with its `base` chain merged under it.
-fn load_layered(path: &Path, depth: usize) -> Result<toml::Table, ConfigError> {
+/// The TOML table of `path` with its `base` chain merged under it. `chain` holds the
+/// presets that led here (each canonicalized), so a preset met twice is refused as a loop.
+fn load_layered(
+    path: &Path,
+    chain: &mut Vec<std::path::PathBuf>,
+) -> Result<toml::Table, ConfigError> {
     let origin = path.display().to_string();
-    if depth > MAX_BASE_DEPTH {
+    let canonical = std::fs::canonicalize(path).map_err(|source| ConfigError::Io {
+        path: origin.clone(),
+        source,
+    })?;
+    if chain.contains(&canonical) {
+        let names: Vec<String> = chain
+            .iter()
+            .chain(std::iter::once(&canonical))
+            .map(|p| {
+                p.file_name()
+                    .unwrap_or_default()
+                    .to_string_lossy()
+                    .into_owned()
+            })
+            .collect();
         return Err(ConfigError::Parse {
             path: origin,
-            message: format!("more than {MAX_BASE_DEPTH} nested `base` presets (a loop?)"),
+            message: format!("a loop of `base` presets: {}", names.join(" -> ")),
         });
     }
+    chain.push(canonical);
     let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
         path: origin.clone(),
         source,
@@ -577,7 +593,7 @@ fn load_layered(path: &Path, depth: usize) -> Result<toml::Table, ConfigError> {
         });
     };
     let base_path = path.parent().unwrap_or(Path::new(".")).join(base);
-    let mut merged = load_layered(&base_path, depth + 1)?;
+    let mut merged = load_layered(&base_path, chain)?;
     merge_into(&mut merged, table);
     Ok(merged)
 }
@@ -763,6 +779,27 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("loop"));
+        std::fs::write(d.join("ping.toml"), "base = \"pong.toml\"\n").unwrap();
+        std::fs::write(d.join("pong.toml"), "base = \"ping.toml\"\n").unwrap();
+        let err = TrainConfig::load(&d.join("ping.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("ping.toml -> pong.toml -> ping.toml"), "{err}");
+        // A long chain without a loop is followed to its end.
+        for k in 0..12 {
+            let text = match k {
+                0 => "[ppo]\ngamma = 0.96\n".to_string(),
+                _ => format!("base = \"chain{}.toml\"\n", k - 1),
+            };
+            std::fs::write(d.join(format!("chain{k}.toml")), text).unwrap();
+        }
+        assert_eq!(
+            TrainConfig::load(&d.join("chain11.toml"))
+                .unwrap()
+                .ppo
+                .gamma,
+            0.96
+        );
         std::fs::write(d.join("orphan.toml"), "base = \"nowhere.toml\"\n").unwrap();
         assert!(TrainConfig::load(&d.join("orphan.toml"))
             .unwrap_err()

@@ -73,6 +73,42 @@ impl Default for RandomizationConfig {
     }
 }
 
+/// How the friction coefficients of a foot and of the ground combine into the contact's.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FrictionCombine {
+    /// foot x ground: on the ground's 1.0 a contact has the foot's coefficient, so the
+    /// randomized range is the contacts' range (the simulator's default).
+    #[default]
+    Multiply,
+    /// (foot + ground) / 2: PhysX's default combine mode, which Isaac Gym (where the paper
+    /// trained, on legged_gym's terrain of friction 1.0) does not change. The paper's foot
+    /// friction [0.1, 2.5] then meets the ground at [0.55, 1.75].
+    Average,
+}
+
+impl FrictionCombine {
+    /// The contact's friction coefficient for a foot's on the ground.
+    pub fn contact_friction(self, foot_friction: f32) -> f32 {
+        let ground = crate::terrain::GROUND_FRICTION;
+        match self {
+            Self::Multiply => foot_friction * ground,
+            Self::Average => 0.5 * (foot_friction + ground),
+        }
+    }
+
+    /// The foot's friction coefficient that gives a contact `contact_friction` on the
+    /// ground, `None` where no non-negative foot coefficient does (below 0.5 averaged).
+    pub fn foot_friction_for(self, contact_friction: f32) -> Option<f32> {
+        let ground = crate::terrain::GROUND_FRICTION;
+        let foot = match self {
+            Self::Multiply => contact_friction / ground,
+            Self::Average => 2.0 * contact_friction - ground,
+        };
+        (foot >= 0.0 && foot.is_finite()).then_some(foot)
+    }
+}
+
 /// Random pushes: sudden base velocity changes.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -112,6 +148,9 @@ pub struct EnvConfig {
     /// default, under which loaded feet slide (BENCHMARKS.md, foot slip). Runs trained before
     /// the change set `false` to be reproduced.
     pub friction_in_bias_pass: bool,
+    /// How a foot's friction coefficient (the randomized one) and the ground's
+    /// ([`crate::terrain::GROUND_FRICTION`]) make the contact's.
+    pub foot_friction_combine: FrictionCombine,
     /// Add observation noise to the actor's inputs.
     pub observation_noise: bool,
     /// Terminate when the base tilts beyond this angle, degrees.
@@ -151,6 +190,7 @@ impl Default for EnvConfig {
             episode_length_s: hexapod_core::timing::EPISODE_LENGTH_S,
             solver_iterations: 1,
             friction_in_bias_pass: true,
+            foot_friction_combine: FrictionCombine::Multiply,
             observation_noise: true,
             max_tilt_deg: 60.0,
             curriculum: true,

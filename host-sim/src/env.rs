@@ -147,6 +147,7 @@ impl HexapodEnv {
             .map(|i| {
                 let mut robot = RobotWorld::new(model, ground.clone(), config.solver_iterations)?;
                 robot.set_friction_in_bias_pass(config.friction_in_bias_pass);
+                robot.set_foot_friction_combine(config.foot_friction_combine);
                 let mut rng = ChaCha8Rng::seed_from_u64(
                     config.seed.wrapping_mul(0x9E37_79B9).wrapping_add(i as u64),
                 );
@@ -213,6 +214,14 @@ impl HexapodEnv {
     /// Foot friction coefficient robot `i` drew at its last reset (1.0 without randomization).
     pub fn foot_friction(&self, i: usize) -> f32 {
         self.slots[i].friction
+    }
+
+    /// Friction coefficient of robot `i`'s foot contacts with the ground: its foot's
+    /// combined with the ground's by the configured rule.
+    pub fn contact_friction(&self, i: usize) -> f32 {
+        self.config
+            .foot_friction_combine
+            .contact_friction(self.slots[i].friction)
     }
 
     /// The simulated robot `i` (link poses and shapes for a 3D replay).

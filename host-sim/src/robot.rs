@@ -751,6 +751,18 @@ impl RobotWorld {
             .sum()
     }
 
+    /// Sets how the feet's friction combines with the ground's (of a pair's two rules rapier
+    /// takes the stronger, Average being the weakest; the ground keeps rapier's default Average).
+    pub fn set_foot_friction_combine(&mut self, combine: crate::config::FrictionCombine) {
+        let rule = match combine {
+            crate::config::FrictionCombine::Multiply => CoefficientCombineRule::Multiply,
+            crate::config::FrictionCombine::Average => CoefficientCombineRule::Average,
+        };
+        for h in self.feet {
+            self.world.colliders[h].set_friction_combine_rule(rule);
+        }
+    }
+
     /// Sets the friction coefficient of all feet.
     pub fn set_foot_friction(&mut self, friction: f32) {
         for h in self.feet {

@@ -29,6 +29,9 @@ pub enum TileKind {
     DiscreteObstacles,
 }
 
+/// Friction coefficient of the ground, everywhere.
+pub const GROUND_FRICTION: f32 = 1.0;
+
 /// Terrain settings.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -317,7 +320,7 @@ impl Terrain {
         if self.heights_m.is_empty() {
             return ColliderBuilder::cuboid(500.0, 500.0, 0.5)
                 .translation(Vector::new(0.0, 0.0, -0.5))
-                .friction(1.0)
+                .friction(GROUND_FRICTION)
                 .build();
         }
         let cell = self.config.cell_size_m;
@@ -333,7 +336,7 @@ impl Terrain {
         ColliderBuilder::heightfield(grid, Vector::new(size_x, 1.0, size_y))
             .rotation(Vector::new(std::f32::consts::FRAC_PI_2, 0.0, 0.0))
             .translation(Vector::new(size_x / 2.0, size_y / 2.0, 0.0))
-            .friction(1.0)
+            .friction(GROUND_FRICTION)
             .build()
     }
 }

@@ -3,7 +3,7 @@
 //! collider, and robots spawned at a pose start there, facing the given way, and stand.
 
 use hexapod_core::robot::NUM_JOINTS;
-use host_sim::config::EnvConfig;
+use host_sim::config::{EnvConfig, FrictionCombine};
 use host_sim::course::{Course, Feature, FEATURE_LENGTH_M, TREAD_M};
 use host_sim::env::{HexapodEnv, SpawnPose};
 use host_sim::frames::yaw_rad;
@@ -242,8 +242,9 @@ fn a_spawn_pose_moves_the_robot_not_its_random_draws() {
 }
 
 /// A robot holding its default pose on the 30 deg ramp, every randomization at its nominal
-/// value but the foot friction; its base x after 1 s (landed) and after 5 s.
-fn hold_pose_on_the_30_deg_ramp(foot_friction: f32) -> (f32, f32, f32) {
+/// value but the foot friction (combined with the ground's by `combine`); its base x after
+/// 1 s (landed) and after 5 s.
+fn hold_pose_on_the_30_deg_ramp(foot_friction: f32, combine: FrictionCombine) -> (f32, f32, f32) {
     let course = Course::new(&[Feature::SlopeUp { slope_deg: 30.0 }]);
     let mut cfg = EnvConfig {
         num_envs: 1,
@@ -252,6 +253,7 @@ fn hold_pose_on_the_30_deg_ramp(foot_friction: f32) -> (f32, f32, f32) {
         ..Default::default()
     };
     cfg.push.enabled = false;
+    cfg.foot_friction_combine = combine;
     let r = &mut cfg.randomization;
     r.enabled = true;
     r.stiffness_factor = [1.0, 1.0];
@@ -292,15 +294,32 @@ fn hold_pose_on_the_30_deg_ramp(foot_friction: f32) -> (f32, f32, f32) {
 /// where its front legs reach the flat.
 #[test]
 fn the_30_deg_ramp_holds_a_standing_robot_only_above_tan_30_deg() {
-    let (landed, end, _) = hold_pose_on_the_30_deg_ramp(0.7);
+    let (landed, end, _) = hold_pose_on_the_30_deg_ramp(0.7, FrictionCombine::Multiply);
     assert!(
         (end - landed).abs() < 0.005,
         "friction 0.7: slid {:.3} m after landing",
         end - landed
     );
-    let (_, end, ramp_start_x_m) = hold_pose_on_the_30_deg_ramp(0.5);
+    let (_, end, ramp_start_x_m) = hold_pose_on_the_30_deg_ramp(0.5, FrictionCombine::Multiply);
     assert!(
         end < ramp_start_x_m + 0.3,
         "friction 0.5: base at {end:.2} m, the ramp starts at {ramp_start_x_m:.2} m"
+    );
+}
+
+/// Averaged with the ground's 1.0 (PhysX's rule), a foot friction of 0.4 meets the ramp at
+/// 0.7 and holds the robot; multiplied, the same feet meet it at 0.4 and slide.
+#[test]
+fn averaged_foot_friction_meets_the_ground_between_the_foots_and_the_grounds() {
+    let (landed, end, _) = hold_pose_on_the_30_deg_ramp(0.4, FrictionCombine::Average);
+    assert!(
+        (end - landed).abs() < 0.005,
+        "foot 0.4 averaged: slid {:.3} m after landing",
+        end - landed
+    );
+    let (_, end, ramp_start_x_m) = hold_pose_on_the_30_deg_ramp(0.4, FrictionCombine::Multiply);
+    assert!(
+        end < ramp_start_x_m + 0.3,
+        "foot 0.4 multiplied: base at {end:.2} m, the ramp starts at {ramp_start_x_m:.2} m"
     );
 }

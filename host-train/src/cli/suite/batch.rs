@@ -5,17 +5,34 @@
 use super::controller::SuiteController;
 use crate::config::TrainConfig;
 use hexapod_core::timing::POLICY_DT_S;
-use host_sim::config::{EnvConfig, RandomizationConfig};
+use host_sim::config::{EnvConfig, FrictionCombine, RandomizationConfig};
 use host_sim::env::HexapodEnv;
 use host_sim::frames::{rotate_inverse, yaw_rad};
 use host_sim::robot::RobotState;
 use host_sim::vec_env::{StepResult, VecEnv};
 use serde::Serialize;
 
-/// Foot friction the suite draws from, instead of the training range's [0.1, 2.5]: below
-/// tan 30 deg = 0.58 no legged robot stands on the 30 deg ramp, so the slope test would
-/// measure the friction draw, not the policy. Both ends are the training range's inner part.
+/// Friction of the feet's contacts with the ground the suite draws from (each robot's foot
+/// friction is the one its checkpoint's combine rule turns into a draw from this range),
+/// instead of the training range's [0.1, 2.5]: below tan 30 deg = 0.58 no legged robot stands
+/// on the 30 deg ramp, so the slope test would measure the friction draw, not the policy. Both
+/// ends are the training range's inner part.
 pub const SUITE_FRICTION: [f32; 2] = [0.6, 1.2];
+
+/// The foot friction range that gives contacts `contact` on the ground under `combine`:
+/// trial k's draw from it is the same fraction of the way as from `contact`, so trial k's
+/// robot meets the ground with the same friction under either rule.
+pub fn foot_friction_range(
+    combine: FrictionCombine,
+    contact: [f32; 2],
+) -> anyhow::Result<[f32; 2]> {
+    let foot = |mu: f32| {
+        combine.foot_friction_for(mu).ok_or_else(|| {
+            anyhow::anyhow!("no foot friction gives contacts {mu} under {combine:?}")
+        })
+    };
+    Ok([foot(contact[0])?, foot(contact[1])?])
+}
 
 /// The conditions every protocol runs under, as the report records them.
 #[derive(Clone, Debug, Serialize)]
@@ -28,6 +45,10 @@ pub struct Conditions {
     pub quick: bool,
     /// Domain randomization per robot (the checkpoint's ranges, friction narrowed).
     pub randomization: RandomizationConfig,
+    /// How a foot's friction and the ground's combine (the checkpoint's rule).
+    pub foot_friction_combine: FrictionCombine,
+    /// Friction of the contacts with the ground, the range the foot friction is drawn to give.
+    pub contact_friction: [f32; 2],
     /// Observation noise on the actor's inputs (the checkpoint's setting).
     pub observation_noise: bool,
     /// Termination of the simulator ("current" rule): trunk contact or tilt beyond this, deg.
@@ -42,21 +63,32 @@ pub struct Conditions {
 
 impl Conditions {
     /// The suite's conditions for a checkpoint's config.
-    pub fn new(cfg: &TrainConfig, seed: u64, trials: usize, quick: bool) -> Self {
+    pub fn new(cfg: &TrainConfig, seed: u64, trials: usize, quick: bool) -> anyhow::Result<Self> {
         let sim = cfg.resolved_sim();
         let mut randomization = sim.randomization.clone();
-        randomization.friction = SUITE_FRICTION;
-        Self {
+        randomization.friction = foot_friction_range(sim.foot_friction_combine, SUITE_FRICTION)?;
+        Ok(Self {
             seed,
             trials,
             quick,
             randomization,
+            foot_friction_combine: sim.foot_friction_combine,
+            contact_friction: SUITE_FRICTION,
             observation_noise: sim.observation_noise,
             max_tilt_deg: sim.max_tilt_deg,
             random_pushes: false,
             deterministic_policy: true,
             terrain_duration_s: super::terrain::DURATION_S,
-        }
+        })
+    }
+
+    /// These conditions with every robot's contacts at friction `contact_friction`.
+    pub fn at_contact_friction(&self, contact_friction: f32) -> anyhow::Result<Self> {
+        let mut at = self.clone();
+        at.contact_friction = [contact_friction; 2];
+        at.randomization.friction =
+            foot_friction_range(self.foot_friction_combine, at.contact_friction)?;
+        Ok(at)
     }
 
     /// Simulator config for `num_envs` robots running `duration_s` without a time-out, on
@@ -162,9 +194,37 @@ mod tests {
     use super::*;
     use host_sim::frames::quat_from_yaw;
 
+    /// Under either combine rule the suite's robots meet the ground with the same friction:
+    /// the foot range maps onto the contact range end to end, and every friction the suite
+    /// asks for has a foot friction that gives it.
+    #[test]
+    fn both_combine_rules_give_the_suites_contact_friction() {
+        for combine in [FrictionCombine::Multiply, FrictionCombine::Average] {
+            let foot = foot_friction_range(combine, SUITE_FRICTION).unwrap();
+            for k in 0..2 {
+                assert!((combine.contact_friction(foot[k]) - SUITE_FRICTION[k]).abs() < 1e-6);
+            }
+            for &mu in super::super::friction::FRICTION_SWEEP.iter() {
+                let c = Conditions::new(&TrainConfig::default(), 1, 10, false).unwrap();
+                let mut cfg = TrainConfig::default();
+                cfg.sim.foot_friction_combine = combine;
+                let at = Conditions::new(&cfg, 1, 10, false)
+                    .unwrap()
+                    .at_contact_friction(mu)
+                    .unwrap();
+                assert_eq!(at.contact_friction, [mu, mu]);
+                assert!((combine.contact_friction(at.randomization.friction[0]) - mu).abs() < 1e-6);
+                assert_eq!(c.foot_friction_combine, FrictionCombine::Multiply);
+            }
+        }
+        let averaged = foot_friction_range(FrictionCombine::Average, SUITE_FRICTION).unwrap();
+        assert!((averaged[0] - 0.2).abs() < 1e-6 && (averaged[1] - 1.4).abs() < 1e-6);
+        assert!(foot_friction_range(FrictionCombine::Average, [0.4, 1.0]).is_err());
+    }
+
     #[test]
     fn nine_of_ten() {
-        let mut c = Conditions::new(&TrainConfig::default(), 1, 10, false);
+        let mut c = Conditions::new(&TrainConfig::default(), 1, 10, false).unwrap();
         assert_eq!(c.survivors_needed(), 9);
         c.trials = 2;
         assert_eq!(c.survivors_needed(), 2);

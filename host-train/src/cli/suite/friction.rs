@@ -1,5 +1,7 @@
-//! Foot friction on the hardest climbs: the terrain test's 30 deg ramp and 20 cm stairs
-//! walked by the same robots at fixed foot friction coefficients, one value at a time.
+//! Friction on the hardest climbs: the terrain test's 30 deg ramp and 20 cm stairs walked by
+//! the same robots at fixed friction coefficients of their contacts with the ground, one value
+//! at a time (each robot's foot friction is the one that gives it under the checkpoint's
+//! combine rule).
 //!
 //! The terrain test draws each robot's friction from [`super::batch::SUITE_FRICTION`], so on
 //! the steep ramp a row's score mixes the policy with the draw. Here trial k is the same robot
@@ -15,7 +17,7 @@ use crate::config::TrainConfig;
 use host_sim::course::Feature;
 use serde::Serialize;
 
-/// Foot friction coefficients tried (the training range is [0.1, 2.5]).
+/// Contact friction coefficients tried.
 pub const FRICTION_SWEEP: [f32; 8] = [0.6, 0.7, 0.8, 0.9, 1.0, 1.2, 1.6, 2.0];
 /// The quick variant's coefficients.
 pub const QUICK_FRICTION_SWEEP: [f32; 2] = [0.6, 1.2];
@@ -45,8 +47,8 @@ pub fn least_friction_to_stand(slope_deg: f32) -> f32 {
 /// The features' results at one friction coefficient.
 #[derive(Clone, Debug, Serialize)]
 pub struct FrictionPoint {
-    /// Foot friction coefficient of every robot.
-    pub foot_friction: f32,
+    /// Friction coefficient of every robot's contacts with the ground.
+    pub contact_friction: f32,
     /// One result per feature of [`features`].
     pub features: Vec<FeatureResult>,
 }
@@ -71,10 +73,9 @@ pub fn run(
     sweep(c.quick)
         .iter()
         .map(|&mu| {
-            let mut at = c.clone();
-            at.randomization.friction = [mu, mu];
+            let at = c.at_contact_friction(mu)?;
             Ok(FrictionPoint {
-                foot_friction: mu,
+                contact_friction: mu,
                 features: run_on_own_course(cfg, controller, &at, &features)?,
             })
         })

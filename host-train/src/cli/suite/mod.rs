@@ -2,7 +2,7 @@
 //! or several checkpoints side by side. Protocols: `push` (velocity-disturbance tolerance,
 //! Table III), `terrain` (stairs and slopes, Fig. 5), `step` (the outdoor 15 cm step),
 //! `beyond` (25 cm stairs, 35 deg slopes), `friction` (the 30 deg ramp and 20 cm stairs at
-//! fixed foot friction), `sine` (sinusoidal commands, Fig. 3), `curriculum` (terrain row over
+//! fixed contact friction), `sine` (sinusoidal commands, Fig. 3), `curriculum` (terrain row over
 //! training, Fig. 4).
 //!
 //! Beside checkpoints, the model-based MPC ([`crate::mpc`], `--mpc [params.toml]`) runs as a
@@ -38,7 +38,7 @@ use std::time::Instant;
 pub const SUITES: [&str; 1] = ["paper"];
 /// Protocols of the paper suite, in the order they run.
 /// `beyond` walks the terrain test's 25 cm stairs and 35 deg slopes, past the paper's range;
-/// `friction` walks its 30 deg ramp and 20 cm stairs at fixed foot friction coefficients.
+/// `friction` walks its 30 deg ramp and 20 cm stairs at fixed contact friction coefficients.
 pub const PROTOCOLS: [&str; 7] = [
     "push",
     "terrain",
@@ -206,7 +206,7 @@ pub fn run(o: &SuiteOptions) -> anyhow::Result<()> {
     };
     let mut reports = Vec::new();
     for c in &mut controllers {
-        let mut conditions = Conditions::new(&c.cfg, o.seed, trials, o.quick);
+        let mut conditions = Conditions::new(&c.cfg, o.seed, trials, o.quick)?;
         if let Some(d) = o.terrain_duration_s {
             conditions.terrain_duration_s = d;
         }

@@ -95,7 +95,7 @@ pub fn draw_all(dir: &Path, reports: &[ControllerReport]) -> Result<Vec<PathBuf>
             single(&out(file), panel)?;
         }
     }
-    // The friction sweep: success rate against foot friction, one panel per feature.
+    // The friction sweep: success rate against contact friction, one panel per feature.
     let sweeps: Vec<(usize, &ControllerReport, &[super::friction::FrictionPoint])> = reports
         .iter()
         .enumerate()
@@ -109,7 +109,7 @@ pub fn draw_all(dir: &Path, reports: &[ControllerReport]) -> Result<Vec<PathBuf>
             .map(|(k, feature)| {
                 let mut panel = Panel::new(
                     format!("{}: success rate", feature.name),
-                    "foot friction coefficient",
+                    "friction coefficient of the foot contacts",
                     "success rate",
                 )
                 .y_range(-0.02, 1.05);
@@ -125,7 +125,7 @@ pub fn draw_all(dir: &Path, reports: &[ControllerReport]) -> Result<Vec<PathBuf>
                     let line: Vec<(f64, f64)> = points
                         .iter()
                         .filter_map(|p| {
-                            Some((p.foot_friction as f64, p.features.get(k)?.success_rate()))
+                            Some((p.contact_friction as f64, p.features.get(k)?.success_rate()))
                         })
                         .collect();
                     panel.line(Line::new(r.name.as_str(), line, color(*i)).with_markers())

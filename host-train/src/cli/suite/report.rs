@@ -2,7 +2,7 @@
 //! (Table III with one row per controller, the success matrix with one column per
 //! controller), with the rules stated and the paper's figures beside ours.
 
-use super::batch::{Conditions, SUITE_FRICTION};
+use super::batch::Conditions;
 use super::curriculum::CurriculumResult;
 use super::friction::{self, FrictionPoint};
 use super::push::{self, Axis, Gait, PushResult, Tolerance};
@@ -40,7 +40,7 @@ pub struct ControllerReport {
     pub terrain: Option<TerrainResult>,
     /// The terrain test beyond the paper's range (25 cm stairs, 35 deg slopes).
     pub beyond_paper: Option<Vec<FeatureResult>>,
-    /// The 30 deg ramp and 20 cm stairs at fixed foot friction coefficients.
+    /// The 30 deg ramp and 20 cm stairs at fixed contact friction coefficients.
     pub friction_sweep: Option<Vec<FrictionPoint>>,
     /// Sinusoidal commands.
     pub sine: Option<Vec<SineRun>>,
@@ -81,7 +81,7 @@ fn range(t: &Tolerance) -> String {
     }
 }
 
-/// The terrain rows some trials passed and some did not, with each trial's foot friction:
+/// The terrain rows some trials passed and some did not, with each trial's contact friction:
 /// on the steep ramps the friction draw, not the policy, may decide a trial.
 fn friction_of_split_rows(s: &mut String, runs: &[(&ControllerReport, &TerrainResult)]) {
     let split = |f: &&FeatureResult| f.successes > 0 && f.successes < f.trials;
@@ -93,16 +93,16 @@ fn friction_of_split_rows(s: &mut String, runs: &[(&ControllerReport, &TerrainRe
     }
     let _ = writeln!(
         s,
-        "Rows with successes and failures, each trial's foot friction (`report.json` has every \
+        "Rows with successes and failures, each trial's contact friction (`report.json` has every \
          trial's friction, distance and fall):\n\n\
-         | controller | terrain | foot friction of the successes | of the failures |\n|---|---|---|---|"
+         | controller | terrain | contact friction of the successes | of the failures |\n|---|---|---|---|"
     );
     let list = |f: &FeatureResult, success: bool| {
         let mut mu: Vec<f32> = f
             .trial_outcomes
             .iter()
             .filter(|t| t.success == success)
-            .map(|t| t.foot_friction)
+            .map(|t| t.contact_friction)
             .collect();
         mu.sort_by(f32::total_cmp);
         mu.iter()
@@ -189,8 +189,9 @@ impl SuiteReport {
                  (the same randomized dynamics) in every test. Policy: the action mean. Observation noise: {}. \
                  Domain randomization per robot (the training ranges, the paper's Table II, except friction): \
                  joint stiffness x[{}, {}], damping x[{}, {}], motor strength x[{}, {}], link masses x[{}, {}], \
-                 payload [{}, {}] kg within +-{} m, initial joints x[{}, {}], foot friction [{}, {}] (training: \
-                 [0.1, 2.5]; below tan 30 deg = 0.58 no robot stands on the 30 deg ramp). The environment's own \
+                 payload [{}, {}] kg within +-{} m, initial joints x[{}, {}], friction of the foot contacts with the ground [{}, {}] (foot \
+                 friction [{:.2}, {:.2}] combined with the ground's by {:?}; training: foot friction [0.1, 2.5]; below \
+                 tan 30 deg = 0.58 no robot stands on the 30 deg ramp). The environment's own \
                  random pushes are off. Fall (the simulator's termination): trunk contact with the ground or tilt \
                  beyond {} deg. Each trial of the terrain, step, beyond and friction tests lasts {} s (the \
                  protocol's: {} s).\n",
@@ -201,7 +202,8 @@ impl SuiteReport {
                 r.stiffness_factor[0], r.stiffness_factor[1], r.damping_factor[0], r.damping_factor[1],
                 r.motor_strength[0], r.motor_strength[1], r.link_mass_factor[0], r.link_mass_factor[1],
                 r.payload_kg[0], r.payload_kg[1], r.payload_offset_m,
-                r.initial_joint_pos_factor[0], r.initial_joint_pos_factor[1], SUITE_FRICTION[0], SUITE_FRICTION[1],
+                r.initial_joint_pos_factor[0], r.initial_joint_pos_factor[1], k.contact_friction[0], k.contact_friction[1],
+                r.friction[0], r.friction[1], k.foot_friction_combine,
                 k.max_tilt_deg,
                 k.terrain_duration_s,
                 terrain::DURATION_S,
@@ -489,8 +491,8 @@ impl SuiteReport {
         let _ = writeln!(
             s,
             "## Foot friction on the hardest climbs\n\n\
-             The terrain test's protocol on its {:.0} deg ramp and {:.2} m stairs, every robot at one foot friction \
-             coefficient per row: trial k is the same robot on every row, only the friction changes. Below \
+             The terrain test's protocol on its {:.0} deg ramp and {:.2} m stairs, every robot's feet meeting the ground at one \
+             friction coefficient per row: trial k is the same robot on every row, only the friction changes. Below \
              tan {:.0} deg = {:.3} no robot stands on the ramp. Cells: successes of trials (mean distance along the \
              command, m).\n",
             friction::SWEEP_SLOPE_DEG,
@@ -509,7 +511,7 @@ impl SuiteReport {
             .collect();
         let _ = writeln!(
             s,
-            "| foot friction | {} |\n|---|{}",
+            "| contact friction | {} |\n|---|{}",
             headers.join(" | "),
             "---|".repeat(headers.len())
         );
@@ -527,7 +529,7 @@ impl SuiteReport {
                     })
                 })
                 .collect();
-            let _ = writeln!(s, "| {:.2} | {} |", p.foot_friction, cells.join(" | "));
+            let _ = writeln!(s, "| {:.2} | {} |", p.contact_friction, cells.join(" | "));
         }
         let _ = writeln!(s);
     }

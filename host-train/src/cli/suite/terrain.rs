@@ -54,12 +54,13 @@ pub struct FeatureResult {
     pub trial_outcomes: Vec<TrialOutcome>,
 }
 
-/// One trial of a feature: its robot's foot friction (the draw most of the steep ramps'
+/// One trial of a feature: its robot's contact friction (the draw most of the steep ramps'
 /// outcomes follow) and what it did.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct TrialOutcome {
-    /// Foot friction coefficient the trial's robot drew.
-    pub foot_friction: f32,
+    /// Friction coefficient of the trial's robot's contacts with the ground (its foot
+    /// friction's draw, combined with the ground's).
+    pub contact_friction: f32,
     /// Distance along the command at the end (at the fall if it fell), m.
     pub distance_m: f32,
     /// The trial fell.
@@ -251,7 +252,7 @@ fn run_lanes(
     }
     let mut fell = vec![false; n];
     let mut distance_m = vec![0.0f32; n];
-    let mut foot_friction = vec![0.0f32; n];
+    let mut contact_friction = vec![0.0f32; n];
     drive(
         &mut env,
         controller,
@@ -259,8 +260,8 @@ fn run_lanes(
         |step, env, commands| {
             if step == 0 {
                 // The draw of the trial's robot (a robot that falls is reset with another).
-                for (i, f) in foot_friction.iter_mut().enumerate() {
-                    *f = env.foot_friction(i);
+                for (i, f) in contact_friction.iter_mut().enumerate() {
+                    *f = env.contact_friction(i);
                 }
             }
             for (i, cmd) in commands.iter_mut().enumerate() {
@@ -289,7 +290,7 @@ fn run_lanes(
             let trial_outcomes: Vec<TrialOutcome> = robots
                 .iter()
                 .map(|&i| TrialOutcome {
-                    foot_friction: foot_friction[i],
+                    contact_friction: contact_friction[i],
                     distance_m: distance_m[i],
                     fell: fell[i],
                     success: !fell[i] && distance_m[i] >= SUCCESS_DISTANCE_M,

@@ -83,6 +83,11 @@ pub struct EvalArgs {
     /// (default 10, the protocol's): longer shows whether a slow climber gets there with time.
     #[arg(long, requires = "suite")]
     pub terrain_duration_s: Option<f32>,
+    /// Range of friction coefficients of the feet's contacts with the ground the suite's
+    /// robots draw from, `LO,HI` (default 0.6,1.2; the paper's simulator met its ground at
+    /// 0.55,1.75: foot friction [0.1, 2.5] averaged with the ground's 1.0).
+    #[arg(long, requires = "suite", value_delimiter = ',', num_args = 1)]
+    pub contact_friction: Option<Vec<f32>>,
     /// Environment override (`sim` or `fake`).
     #[arg(long, value_parser = ["sim", "fake"])]
     pub env: Option<String>,
@@ -619,6 +624,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             trials: args.trials,
             seed: args.seed,
             terrain_duration_s: args.terrain_duration_s,
+            contact_friction: args.contact_friction.clone(),
         });
     }
     let [checkpoint] = args.checkpoint.as_slice() else {

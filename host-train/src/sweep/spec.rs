@@ -251,6 +251,7 @@ impl Sweep {
             trials: e.trials,
             seed: e.seed,
             terrain_duration_s: None,
+            contact_friction: None,
         }
     }
 }

@@ -82,13 +82,18 @@ impl Conditions {
         })
     }
 
+    /// These conditions with the robots' contacts drawn from `contact_friction`.
+    pub fn with_contact_friction(&self, contact_friction: [f32; 2]) -> anyhow::Result<Self> {
+        let mut at = self.clone();
+        at.contact_friction = contact_friction;
+        at.randomization.friction =
+            foot_friction_range(self.foot_friction_combine, contact_friction)?;
+        Ok(at)
+    }
+
     /// These conditions with every robot's contacts at friction `contact_friction`.
     pub fn at_contact_friction(&self, contact_friction: f32) -> anyhow::Result<Self> {
-        let mut at = self.clone();
-        at.contact_friction = [contact_friction; 2];
-        at.randomization.friction =
-            foot_friction_range(self.foot_friction_combine, at.contact_friction)?;
-        Ok(at)
+        self.with_contact_friction([contact_friction; 2])
     }
 
     /// Simulator config for `num_envs` robots running `duration_s` without a time-out, on

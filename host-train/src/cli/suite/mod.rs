@@ -59,6 +59,9 @@ pub const QUICK_PUSH_SEARCH: (usize, usize) = (1, 1);
 /// Longest terrain trial the suite runs, s.
 pub const MAX_TERRAIN_DURATION_S: f32 = 60.0;
 
+/// Highest contact friction `--contact-friction` takes.
+pub const MAX_CONTACT_FRICTION: f32 = 5.0;
+
 /// What `hexapod eval --suite` was asked for.
 #[derive(Clone, Debug)]
 pub struct SuiteOptions {
@@ -81,6 +84,9 @@ pub struct SuiteOptions {
     pub seed: u64,
     /// Length of each terrain trial, s (default [`terrain::DURATION_S`]).
     pub terrain_duration_s: Option<f32>,
+    /// Friction range of the feet's contacts with the ground, `[lo, hi]` (default
+    /// [`batch::SUITE_FRICTION`]).
+    pub contact_friction: Option<Vec<f32>>,
 }
 
 /// Checks the options; returns the protocols to run, in run order.
@@ -103,6 +109,14 @@ pub fn validate(o: &SuiteOptions) -> anyhow::Result<Vec<&'static str>> {
     if let Some(d) = o.terrain_duration_s {
         if !(d > 0.0 && d <= MAX_TERRAIN_DURATION_S) {
             bail!("--terrain-duration-s must be in (0, {MAX_TERRAIN_DURATION_S}] s, got {d}");
+        }
+    }
+    if let Some(mu) = &o.contact_friction {
+        if !matches!(mu.as_slice(), [lo, hi] if *lo > 0.0 && lo <= hi && *hi <= MAX_CONTACT_FRICTION)
+        {
+            bail!(
+                "--contact-friction must be LO,HI with 0 < LO <= HI <= {MAX_CONTACT_FRICTION}, got {mu:?}"
+            );
         }
     }
     if o.checkpoints.is_empty() && o.mpc.is_none() {
@@ -207,6 +221,9 @@ pub fn run(o: &SuiteOptions) -> anyhow::Result<()> {
     let mut reports = Vec::new();
     for c in &mut controllers {
         let mut conditions = Conditions::new(&c.cfg, o.seed, trials, o.quick)?;
+        if let Some([lo, hi]) = o.contact_friction.as_deref() {
+            conditions = conditions.with_contact_friction([*lo, *hi])?;
+        }
         if let Some(d) = o.terrain_duration_s {
             conditions.terrain_duration_s = d;
         }
@@ -373,6 +390,7 @@ mod tests {
             trials: None,
             seed: 1,
             terrain_duration_s: None,
+            contact_friction: None,
         }
     }
 
@@ -400,6 +418,21 @@ mod tests {
             let e = validate(&o).unwrap_err().to_string();
             assert!(e.contains("--terrain-duration-s"), "{e}");
         }
+        for bad in [
+            vec![0.6],
+            vec![1.2, 0.6],
+            vec![0.0, 1.0],
+            vec![0.6, 9.0],
+            vec![0.6, 0.8, 1.0],
+        ] {
+            let mut o = opts();
+            o.contact_friction = Some(bad);
+            let e = validate(&o).unwrap_err().to_string();
+            assert!(e.contains("--contact-friction"), "{e}");
+        }
+        let mut o = opts();
+        o.contact_friction = Some(vec![0.55, 1.75]);
+        assert!(validate(&o).is_ok());
         let mut o = opts();
         o.protocols = vec!["sine".into(), "push".into()];
         assert_eq!(validate(&o).unwrap(), vec!["push", "sine"]);

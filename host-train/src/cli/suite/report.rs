@@ -490,7 +490,7 @@ impl SuiteReport {
         };
         let _ = writeln!(
             s,
-            "## Foot friction on the hardest climbs\n\n\
+            "## Contact friction on the hardest climbs\n\n\
              The terrain test's protocol on its {:.0} deg ramp and {:.2} m stairs, every robot's feet meeting the ground at one \
              friction coefficient per row: trial k is the same robot on every row, only the friction changes. Below \
              tan {:.0} deg = {:.3} no robot stands on the ramp. Cells: successes of trials (mean distance along the \

@@ -28,7 +28,11 @@ pub fn foot_friction_range(
 ) -> anyhow::Result<[f32; 2]> {
     let foot = |mu: f32| {
         combine.foot_friction_for(mu).ok_or_else(|| {
-            anyhow::anyhow!("no foot friction gives contacts {mu} under {combine:?}")
+            anyhow::anyhow!(
+                "no foot friction gives contacts of friction {mu} under the checkpoint's \
+                 {combine:?} rule (averaged with the ground's {}, contacts are at least half of it)",
+                host_sim::terrain::GROUND_FRICTION
+            )
         })
     };
     Ok([foot(contact[0])?, foot(contact[1])?])

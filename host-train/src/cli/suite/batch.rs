@@ -69,13 +69,11 @@ impl Conditions {
     /// The suite's conditions for a checkpoint's config.
     pub fn new(cfg: &TrainConfig, seed: u64, trials: usize, quick: bool) -> anyhow::Result<Self> {
         let sim = cfg.resolved_sim();
-        let mut randomization = sim.randomization.clone();
-        randomization.friction = foot_friction_range(sim.foot_friction_combine, SUITE_FRICTION)?;
-        Ok(Self {
+        let mut c = Self {
             seed,
             trials,
             quick,
-            randomization,
+            randomization: sim.randomization.clone(),
             foot_friction_combine: sim.foot_friction_combine,
             contact_friction: SUITE_FRICTION,
             observation_noise: sim.observation_noise,
@@ -83,21 +81,25 @@ impl Conditions {
             random_pushes: false,
             deterministic_policy: true,
             terrain_duration_s: super::terrain::DURATION_S,
-        })
+        };
+        c.set_contact_friction(SUITE_FRICTION)?;
+        Ok(c)
     }
 
-    /// These conditions with the robots' contacts drawn from `contact_friction`.
-    pub fn with_contact_friction(&self, contact_friction: [f32; 2]) -> anyhow::Result<Self> {
-        let mut at = self.clone();
-        at.contact_friction = contact_friction;
-        at.randomization.friction =
+    /// Draws the robots' contacts from `contact_friction`: the foot friction range that
+    /// gives it under the checkpoint's combine rule.
+    pub fn set_contact_friction(&mut self, contact_friction: [f32; 2]) -> anyhow::Result<()> {
+        self.randomization.friction =
             foot_friction_range(self.foot_friction_combine, contact_friction)?;
-        Ok(at)
+        self.contact_friction = contact_friction;
+        Ok(())
     }
 
     /// These conditions with every robot's contacts at friction `contact_friction`.
     pub fn at_contact_friction(&self, contact_friction: f32) -> anyhow::Result<Self> {
-        self.with_contact_friction([contact_friction; 2])
+        let mut at = self.clone();
+        at.set_contact_friction([contact_friction; 2])?;
+        Ok(at)
     }
 
     /// Simulator config for `num_envs` robots running `duration_s` without a time-out, on
@@ -213,19 +215,17 @@ mod tests {
             for k in 0..2 {
                 assert!((combine.contact_friction(foot[k]) - SUITE_FRICTION[k]).abs() < 1e-6);
             }
+            let mut cfg = TrainConfig::default();
+            cfg.sim.foot_friction_combine = combine;
+            let c = Conditions::new(&cfg, 1, 10, false).unwrap();
             for &mu in super::super::friction::FRICTION_SWEEP.iter() {
-                let c = Conditions::new(&TrainConfig::default(), 1, 10, false).unwrap();
-                let mut cfg = TrainConfig::default();
-                cfg.sim.foot_friction_combine = combine;
-                let at = Conditions::new(&cfg, 1, 10, false)
-                    .unwrap()
-                    .at_contact_friction(mu)
-                    .unwrap();
+                let at = c.at_contact_friction(mu).unwrap();
                 assert_eq!(at.contact_friction, [mu, mu]);
                 assert!((combine.contact_friction(at.randomization.friction[0]) - mu).abs() < 1e-6);
-                assert_eq!(c.foot_friction_combine, FrictionCombine::Multiply);
             }
         }
+        let c = Conditions::new(&TrainConfig::default(), 1, 10, false).unwrap();
+        assert_eq!(c.foot_friction_combine, FrictionCombine::Multiply);
         let averaged = foot_friction_range(FrictionCombine::Average, SUITE_FRICTION).unwrap();
         assert!((averaged[0] - 0.2).abs() < 1e-6 && (averaged[1] - 1.4).abs() < 1e-6);
         assert!(foot_friction_range(FrictionCombine::Average, [0.4, 1.0]).is_err());

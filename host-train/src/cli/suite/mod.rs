@@ -222,7 +222,7 @@ pub fn run(o: &SuiteOptions) -> anyhow::Result<()> {
     for c in &mut controllers {
         let mut conditions = Conditions::new(&c.cfg, o.seed, trials, o.quick)?;
         if let Some([lo, hi]) = o.contact_friction.as_deref() {
-            conditions = conditions.with_contact_friction([*lo, *hi])?;
+            conditions.set_contact_friction([*lo, *hi])?;
         }
         if let Some(d) = o.terrain_duration_s {
             conditions.terrain_duration_s = d;

@@ -144,7 +144,7 @@ fn candle_ppo_step(batch: usize, reps: usize) -> anyhow::Result<f64> {
 /// gradient penalty on the prior ones, backward, Adam.
 fn candle_disc_step(batch: usize, reps: usize) -> anyhow::Result<f64> {
     let (params, stats) = (VarMap::new(), VarMap::new());
-    let disc = Discriminator::new(&[1024, 512], &params, &stats, DType::F32, &Device::Cpu)?;
+    let disc = Discriminator::new(&[1024, 512], &params, &stats, 1, DType::F32, &Device::Cpu)?;
     let mut opt = Adam::new(&params, 1e-4)?;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
     let prior = random(&mut rng, batch, DISC_IN);

@@ -76,6 +76,42 @@ fn ppo_with_amp_learns_and_resumes() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// A run's metrics rows without the wall-clock ones (`perf/*`).
+fn learning_rows(runner: &Runner) -> Vec<Vec<(String, u64)>> {
+    let rows = runner.metrics.rows().iter();
+    rows.map(|r| {
+        let kept = r.iter().filter(|(k, _)| !k.starts_with("perf/"));
+        kept.map(|(k, v)| (k.clone(), v.to_bits())).collect()
+    })
+    .collect()
+}
+
+#[test]
+fn the_same_seed_gives_the_same_training_and_another_seed_another() {
+    let mut cfg = smoke_config();
+    cfg.env.num_envs = 16;
+    cfg.runner.max_iterations = 3;
+    let run = |cfg: &TrainConfig, name: &str| {
+        let dir = run_dir(name);
+        let mut runner = Runner::new(cfg, env_for(cfg), priors(), &dir).unwrap();
+        runner.learn(false).unwrap();
+        std::fs::remove_dir_all(&dir).ok();
+        learning_rows(&runner)
+    };
+    let (a, b) = (run(&cfg, "seed-a"), run(&cfg, "seed-b"));
+    assert_eq!(a.len(), 3);
+    assert_eq!(
+        a, b,
+        "two runs of one config (the networks' first weights included)"
+    );
+    cfg.runner.seed += 1;
+    assert_ne!(
+        a,
+        run(&cfg, "seed-c"),
+        "runner.seed draws other first weights"
+    );
+}
+
 /// How [`PoisonedEnv`] breaks from its `after`-th step on.
 enum Fault {
     /// NaN rewards.

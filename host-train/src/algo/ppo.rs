@@ -302,6 +302,7 @@ impl Ppo {
             cfg.rma.as_ref(),
             &params,
             &stats,
+            cfg.runner.seed,
             DType::F32,
             &device,
         )?;
@@ -310,6 +311,7 @@ impl Ppo {
                 &cfg.amp.discriminator_hidden,
                 &disc_params,
                 &stats,
+                cfg.runner.seed,
                 DType::F32,
                 &device,
             )?;

@@ -9,8 +9,9 @@
 
 use crate::nn::mlp::Mlp;
 use crate::nn::normalizer::EmpiricalNormalizer;
+use crate::nn::seeded_init::seeded_var_builder;
 use candle_core::{DType, Device, Result, Tensor};
-use candle_nn::{VarBuilder, VarMap};
+use candle_nn::VarMap;
 use hexapod_core::amp::{AMP_GROUPS, AMP_STATE_DIM};
 
 /// Discriminator input size.
@@ -41,15 +42,17 @@ pub struct Discriminator {
 }
 
 impl Discriminator {
-    /// Builds the network under `discriminator.*` in `params`, the normalizer in `stats`.
+    /// Builds the network under `discriminator.*` in `params` (fresh weights drawn from
+    /// `seed`, see [`seeded_var_builder`]), the normalizer in `stats`.
     pub fn new(
         hidden: &[usize],
         params: &VarMap,
         stats: &VarMap,
+        seed: u64,
         dtype: DType,
         device: &Device,
     ) -> Result<Self> {
-        let vb = VarBuilder::from_varmap(params, dtype, device);
+        let vb = seeded_var_builder(params, seed, dtype, device);
         Ok(Self {
             net: Mlp::new(DISC_IN, hidden, 1, vb.pp("discriminator"))?,
             norm: EmpiricalNormalizer::new(stats, "amp", AMP_STATE_DIM, device)?,
@@ -164,7 +167,7 @@ mod tests {
     fn penalty_gradient_matches_finite_differences() {
         let dev = Device::Cpu;
         let (params, stats) = (VarMap::new(), VarMap::new());
-        let disc = Discriminator::new(&[9, 7], &params, &stats, DType::F64, &dev).unwrap();
+        let disc = Discriminator::new(&[9, 7], &params, &stats, 1, DType::F64, &dev).unwrap();
         let n = 4;
         let x: Vec<f64> = (0..n * DISC_IN)
             .map(|i| ((i * 7919 % 101) as f64 / 50.0 - 1.0) * 1.5)
@@ -229,7 +232,7 @@ mod tests {
     fn saliency_finds_the_one_input_the_discriminator_reads() {
         let dev = Device::Cpu;
         let (params, stats) = (VarMap::new(), VarMap::new());
-        let disc = Discriminator::new(&[8], &params, &stats, DType::F32, &dev).unwrap();
+        let disc = Discriminator::new(&[8], &params, &stats, 1, DType::F32, &dev).unwrap();
         {
             let data = params.data().lock().unwrap();
             let w = data.get("discriminator.layers.0.weight").unwrap();
@@ -263,7 +266,7 @@ mod tests {
         use crate::algo::adam::Adam;
         let dev = Device::Cpu;
         let (params, stats) = (VarMap::new(), VarMap::new());
-        let disc = Discriminator::new(&[32, 16], &params, &stats, DType::F32, &dev).unwrap();
+        let disc = Discriminator::new(&[32, 16], &params, &stats, 1, DType::F32, &dev).unwrap();
         let mut opt = Adam::new(&params, 1e-3).unwrap();
         let n = 64;
         let prior = Tensor::ones((n, DISC_IN), DType::F32, &dev).unwrap();

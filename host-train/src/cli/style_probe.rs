@@ -141,7 +141,7 @@ mod tests {
     fn probed(slope: f32, bias: f32, command: [f32; 3]) -> Option<StyleProbe> {
         let dev = Device::Cpu;
         let (mut params, stats) = (VarMap::new(), VarMap::new());
-        let disc = Discriminator::new(&[], &params, &stats, DType::F32, &dev).unwrap();
+        let disc = Discriminator::new(&[], &params, &stats, 1, DType::F32, &dev).unwrap();
         let mut w = vec![0.0f32; DISC_IN];
         w[AMP_BASE_LIN_VEL.start] = slope;
         params

@@ -26,8 +26,9 @@
 use crate::config::{PolicyConfig, RmaConfig, RmaPhase};
 use crate::nn::mlp::Mlp;
 use crate::nn::normalizer::EmpiricalNormalizer;
+use crate::nn::seeded_init::seeded_var_builder;
 use candle_core::{DType, Device, Result, Tensor};
-use candle_nn::{Init, VarBuilder, VarMap};
+use candle_nn::{Init, VarMap};
 use hexapod_core::nets::{ACTOR_OUT, ESTIMATOR_OUT};
 use hexapod_core::obs::{ACTOR_OBS_DIM, HEIGHT_SCAN_DIM, HISTORY_DIM, PRIVILEGED_DIM};
 
@@ -85,17 +86,19 @@ pub struct ActorCritic {
 }
 
 impl ActorCritic {
-    /// Builds the networks in `params` (trainable) and the normalizers in `stats`; `rma`
-    /// adds mu (and, for a teacher, makes the actor act on its latent).
+    /// Builds the networks in `params` (trainable; fresh weights drawn from `seed`, see
+    /// [`seeded_var_builder`]) and the normalizers in `stats`; `rma` adds mu (and, for a
+    /// teacher, makes the actor act on its latent).
     pub fn new(
         cfg: &PolicyConfig,
         rma: Option<&RmaConfig>,
         params: &VarMap,
         stats: &VarMap,
+        seed: u64,
         dtype: DType,
         device: &Device,
     ) -> Result<Self> {
-        let vb = VarBuilder::from_varmap(params, dtype, device);
+        let vb = seeded_var_builder(params, seed, dtype, device);
         let estimator = if cfg.use_estimator {
             Some(Mlp::new(
                 HISTORY_DIM,
@@ -291,7 +294,8 @@ mod tests {
     fn paper_shapes_and_keys() {
         let (params, stats) = (VarMap::new(), VarMap::new());
         let cfg = PolicyConfig::default();
-        let ac = ActorCritic::new(&cfg, None, &params, &stats, DType::F32, &Device::Cpu).unwrap();
+        let ac =
+            ActorCritic::new(&cfg, None, &params, &stats, 1, DType::F32, &Device::Cpu).unwrap();
         let data = params.data().lock().unwrap();
         let shape = |k: &str| data.get(k).unwrap_or_else(|| panic!("{k}")).dims().to_vec();
         assert_eq!(shape("actor.layers.0.weight"), vec![256, 63 + 3 + 16]);
@@ -328,7 +332,7 @@ mod tests {
             ..Default::default()
         };
         let rma = RmaConfig::default();
-        let ac = ActorCritic::new(&cfg, Some(&rma), &params, &stats, DType::F32, &dev).unwrap();
+        let ac = ActorCritic::new(&cfg, Some(&rma), &params, &stats, 1, DType::F32, &dev).unwrap();
         assert!(ac.teacher_latent);
         let w = |k: &str| params.data().lock().unwrap()[k].dims().to_vec();
         assert_eq!(w("env_factor_encoder.layers.0.weight"), vec![256, 42 + 187]);
@@ -372,7 +376,8 @@ mod tests {
             init_noise_std: 0.5,
             ..Default::default()
         };
-        let ac = ActorCritic::new(&cfg, None, &params, &stats, DType::F32, &Device::Cpu).unwrap();
+        let ac =
+            ActorCritic::new(&cfg, None, &params, &stats, 1, DType::F32, &Device::Cpu).unwrap();
         let mean = Tensor::zeros((1, 18), DType::F32, &Device::Cpu).unwrap();
         let act = Tensor::ones((1, 18), DType::F32, &Device::Cpu).unwrap();
         let lp = ac.log_prob(&mean, &act).unwrap().to_vec1::<f32>().unwrap()[0] as f64;

@@ -5,6 +5,7 @@ pub mod bias;
 pub mod elu;
 pub mod mlp;
 pub mod normalizer;
+pub mod seeded_init;
 pub(crate) mod simd;
 
 /// Helpers for the tests that hold a fused operation to the bits of the operations it fuses.

@@ -6,10 +6,13 @@
 //! zero switches a term off; `task` and `regularization` switch whole groups (the paper's
 //! ablations g+s, g+l, g+s+l).
 //!
-//! One term is not in Table I and is off by default: `tripod_contact` rewards each step
-//! whose stance set is exactly one of the two tripods while the robot is commanded to move.
-//! `configs/flat-tripod.toml` leaves it off (the gait is the style reward's); the rough-terrain
-//! presets, which continue the behavior-cloned `assets/policies/flat-tripod`, keep it.
+//! Two terms are not in Table I and are off by default:
+//! - `tripod_contact` rewards each step whose stance set is exactly one of the two tripods
+//!   while the robot is commanded to move. `configs/flat-tripod.toml` leaves it off (the gait
+//!   is the style reward's); the rough-terrain presets, which continue the behavior-cloned
+//!   `assets/policies/flat-tripod`, keep it.
+//! - `feet_stumble` penalizes each step in which a foot pushes into a riser's face, after
+//!   legged_gym's `_reward_feet_stumble`: a blind robot's foot jammed against a riser.
 
 use hexapod_core::robot::{NUM_JOINTS, NUM_LEGS, TRIPOD_A_MASK, TRIPOD_B_MASK};
 
@@ -17,6 +20,15 @@ use hexapod_core::robot::{NUM_JOINTS, NUM_LEGS, TRIPOD_A_MASK, TRIPOD_B_MASK};
 pub const STANCE_FORCE_N: f32 = 5.0;
 /// Commands below this speed (m/s, and rad/s for yaw) count as standing still.
 pub const MOVING_COMMAND_MIN: f32 = 0.05;
+/// A foot stumbles when the horizontal part of the ground's normal force on it exceeds this
+/// multiple of the vertical part: when the face it touches is steeper than 60 deg (tan 60 deg).
+///
+/// legged_gym's `_reward_feet_stumble` uses 5 on the full contact force against vertical
+/// walls. Here the force is the normal part alone, so the ratio is the face's steepness, and
+/// the ground is a heightfield of 5 cm cells whose risers are ramps one cell wide: a 20 cm
+/// riser's face leans at 76 deg (ratio 4.0, under legged_gym's 5), a 10 cm one's at 63 deg.
+/// The steepest slopes trained (36 deg, 0.73) stay well below.
+pub const STUMBLE_RATIO: f32 = 1.732;
 use serde::{Deserialize, Serialize};
 
 /// Scales of the reward terms (the paper's values by default).
@@ -65,6 +77,10 @@ pub struct RewardScales {
     pub max_contact_force_n: f32,
     /// Stance set is exactly tripod A or B while commanded to move (not in Table I; 0 = off).
     pub tripod_contact: f32,
+    /// Some foot pushes into a riser's face: its normal force's horizontal part above
+    /// [`STUMBLE_RATIO`] x the vertical one (after legged_gym's `feet_stumble`; not in
+    /// Table I; 0 = off).
+    pub feet_stumble: f32,
 }
 
 impl Default for RewardScales {
@@ -89,6 +105,7 @@ impl Default for RewardScales {
             soft_velocity_limit: 0.9,
             max_contact_force_n: 150.0,
             tripod_contact: 0.0,
+            feet_stumble: 0.0,
         }
     }
 }
@@ -126,11 +143,12 @@ pub const TERM_NAMES: [&str; NUM_TERMS] = [
     "torque_limits",
     "joint_vel_limits",
     "contact_forces",
+    "feet_stumble",
     "tripod_contact",
 ];
 
 /// Number of reward terms.
-pub const NUM_TERMS: usize = 12;
+pub const NUM_TERMS: usize = 13;
 
 /// What the rewards are computed from (one policy step, one robot).
 pub struct RewardInputs<'a> {
@@ -214,10 +232,15 @@ pub fn compute(scales: &RewardScales, x: &RewardInputs, dt_s: f32) -> RewardTerm
         .iter()
         .map(|f| (sq(f).sqrt() - scales.max_contact_force_n).max(0.0))
         .sum();
+    raw[11] = f32::from(u8::from(
+        x.foot_force_n
+            .iter()
+            .any(|f| f[0].hypot(f[1]) > STUMBLE_RATIO * f[2].abs()),
+    ));
     let mask = stance_mask(x.foot_force_n);
     let moving = x.command[0].hypot(x.command[1]) > MOVING_COMMAND_MIN
         || x.command[2].abs() > MOVING_COMMAND_MIN;
-    raw[11] = f32::from(u8::from(
+    raw[12] = f32::from(u8::from(
         moving && (mask == TRIPOD_A_MASK || mask == TRIPOD_B_MASK),
     ));
     let s = [
@@ -232,6 +255,7 @@ pub fn compute(scales: &RewardScales, x: &RewardInputs, dt_s: f32) -> RewardTerm
         scales.torque_limits,
         scales.joint_vel_limits,
         scales.contact_forces,
+        scales.feet_stumble,
         scales.tripod_contact,
     ];
     let mut terms = RewardTerms::default();
@@ -341,20 +365,43 @@ mod tests {
         }
         assert_eq!(stance_mask(&feet), TRIPOD_A_MASK);
         let t = compute(&scales, &inputs(&z, &feet), 1.0);
-        assert_eq!(t.values[11], 0.5);
+        assert_eq!(t.values[12], 0.5);
         // Off by default (the paper's Table I).
         assert_eq!(
-            compute(&RewardScales::default(), &inputs(&z, &feet), 1.0).values[11],
+            compute(&RewardScales::default(), &inputs(&z, &feet), 1.0).values[12],
             0.0
         );
         // Standing still: no gait reward.
         let mut standing = inputs(&z, &feet);
         standing.command = [0.0; 3];
-        assert_eq!(compute(&scales, &standing, 1.0).values[11], 0.0);
+        assert_eq!(compute(&scales, &standing, 1.0).values[12], 0.0);
         // A fourth foot down (below the threshold it does not count).
         feet[1] = [0.0, 0.0, 4.0];
-        assert_eq!(compute(&scales, &inputs(&z, &feet), 1.0).values[11], 0.5);
+        assert_eq!(compute(&scales, &inputs(&z, &feet), 1.0).values[12], 0.5);
         feet[1] = [0.0, 0.0, 6.0];
+        assert_eq!(compute(&scales, &inputs(&z, &feet), 1.0).values[12], 0.0);
+    }
+
+    #[test]
+    fn a_foot_pushing_into_a_riser_stumbles_a_foot_on_a_tread_does_not() {
+        let z = [0.0; NUM_JOINTS];
+        let scales = RewardScales {
+            feet_stumble: -1.0,
+            ..Default::default()
+        };
+        let mut feet = [[0.0; 3]; NUM_LEGS];
+        feet[2] = [12.0, 5.0, 60.0];
         assert_eq!(compute(&scales, &inputs(&z, &feet), 1.0).values[11], 0.0);
+        // On a 36 deg slope the normal force leans 36 deg: no stumble.
+        feet[1] = [0.73 * 80.0, 0.0, 80.0];
+        assert_eq!(compute(&scales, &inputs(&z, &feet), 1.0).values[11], 0.0);
+        // Against a 20 cm riser's face (76 deg in the heightfield): a stumble.
+        feet[0] = [108.0, 0.0, 27.0];
+        assert_eq!(compute(&scales, &inputs(&z, &feet), 1.0).values[11], -1.0);
+        // One penalty per step, however many feet stumble; off by default.
+        feet[3] = [-40.0, 10.0, 2.0];
+        assert_eq!(compute(&scales, &inputs(&z, &feet), 1.0).values[11], -1.0);
+        let default = compute(&RewardScales::default(), &inputs(&z, &feet), 1.0);
+        assert_eq!(default.values[11], 0.0);
     }
 }

@@ -222,6 +222,10 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
     for name in LEG_NAMES {
         write!(csv, ",clearance_m_{name}").ok();
     }
+    // The ground's normal force on each foot, split into its horizontal and vertical parts.
+    for name in LEG_NAMES {
+        write!(csv, ",foot_force_xy_n_{name},foot_force_z_n_{name}").ok();
+    }
     let with_style = ppo.disc.is_some();
     if with_style {
         csv.push_str(",d_score,style_reward");
@@ -352,6 +356,13 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
         for (leg, c) in clearance_m.iter().enumerate() {
             write!(csv, ",{c}").ok();
             clearance_series[leg].push((t as f64, *c as f64));
+        }
+        let foot_force_n = match &play_env {
+            PlayEnv::Sim(env) => env.contacts(0).foot_force_world_n,
+            PlayEnv::Other(_) => [[f32::NAN; 3]; NUM_LEGS],
+        };
+        for f in foot_force_n {
+            write!(csv, ",{},{}", f[0].hypot(f[1]), f[2]).ok();
         }
         if let Some((d, r)) = style {
             write!(csv, ",{d},{r}").ok();

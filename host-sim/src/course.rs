@@ -22,6 +22,8 @@ pub const FEATURE_LENGTH_M: f32 = 5.0;
 /// Stair tread depth, m (the tile grid's default).
 pub const TREAD_M: f32 = 0.35;
 /// Height grid spacing, m (the tile grid's default). Treads and the run-up are whole cells.
+/// The grid draws each riser as a ramp one cell wide: a 20 cm riser leans at 76 deg on 5 cm
+/// cells, 83 deg on 2.5 cm ([`Course::with_cell`]).
 pub const CELL_M: f32 = 0.05;
 /// Level ground behind the start, m.
 const BACK_MARGIN_M: f32 = 2.0;
@@ -66,21 +68,22 @@ impl Feature {
     /// stand at whole multiples of [`TREAD_M`]; the grid draws each one as a ramp one cell wide.
     pub fn height_m(&self, along_m: f32) -> f32 {
         let cells = (along_m / CELL_M).round() as i64;
-        self.height_at_cell(cells)
+        self.height_at_cell(cells, CELL_M)
     }
 
-    /// Height at a whole number of cells past the edge, m (exact integer stair arithmetic).
-    fn height_at_cell(&self, cells: i64) -> f32 {
+    /// Height at a whole number of cells of `cell_m` past the edge, m (exact integer stair
+    /// arithmetic).
+    fn height_at_cell(&self, cells: i64, cell_m: f32) -> f32 {
         if cells <= 0 {
             return 0.0;
         }
-        let tread = (TREAD_M / CELL_M).round() as i64;
-        let feature_cells = (FEATURE_LENGTH_M / CELL_M).round() as i64;
+        let tread = (TREAD_M / cell_m).round() as i64;
+        let feature_cells = (FEATURE_LENGTH_M / cell_m).round() as i64;
         let steps = |h: f32| {
             let k = ((cells.min(feature_cells) + tread - 1) / tread).min(feature_cells / tread);
             h * k as f32
         };
-        let ramp = |deg: f32| deg.to_radians().tan() * cells.min(feature_cells) as f32 * CELL_M;
+        let ramp = |deg: f32| deg.to_radians().tan() * cells.min(feature_cells) as f32 * cell_m;
         match *self {
             Feature::Flat => 0.0,
             Feature::StairsUp { step_height_m } => steps(step_height_m),
@@ -104,6 +107,38 @@ impl Feature {
     }
 }
 
+/// Finest height grid a course may have, m (a grid of 2 cm cells over 30 lanes holds about
+/// 8 million heights).
+pub const MIN_CELL_M: f32 = 0.01;
+
+/// Checks that `cell_m` can draw the course: at least [`MIN_CELL_M`], at most the default
+/// [`CELL_M`], and the treads, the run-up, the feature, the margins and the lanes whole
+/// numbers of cells.
+pub fn check_cell(cell_m: f32) -> Result<(), String> {
+    if !(MIN_CELL_M..=CELL_M).contains(&cell_m) {
+        return Err(format!(
+            "a course cell of {cell_m} m is outside [{MIN_CELL_M}, {CELL_M}] m"
+        ));
+    }
+    let lengths = [
+        ("tread", TREAD_M),
+        ("run-up", RUN_UP_M),
+        ("feature", FEATURE_LENGTH_M),
+        ("back margin", BACK_MARGIN_M),
+        ("landing", LANDING_M),
+        ("lane width", LANE_WIDTH_M),
+    ];
+    for (name, length_m) in lengths {
+        let cells = length_m / cell_m;
+        if (cells - cells.round()).abs() > 1e-3 {
+            return Err(format!(
+                "a course cell of {cell_m} m does not divide the {name} ({length_m} m) into whole cells"
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// The course: its ground and, per lane, the feature and the start pose.
 pub struct Course {
     features: Vec<Feature>,
@@ -111,24 +146,34 @@ pub struct Course {
 }
 
 impl Course {
-    /// Builds one lane per feature, in order.
+    /// Builds one lane per feature, in order, on a grid of [`CELL_M`].
     pub fn new(features: &[Feature]) -> Self {
+        Self::with_cell(features, CELL_M)
+    }
+
+    /// Builds one lane per feature, in order, on a height grid of `cell_m` (see
+    /// [`check_cell`]; panics on a cell it refuses).
+    pub fn with_cell(features: &[Feature], cell_m: f32) -> Self {
         assert!(!features.is_empty(), "a course needs at least one lane");
+        if let Err(e) = check_cell(cell_m) {
+            panic!("{e}");
+        }
         let length_m = BACK_MARGIN_M + RUN_UP_M + FEATURE_LENGTH_M + LANDING_M;
-        let nx = (length_m / CELL_M).round() as usize + 1;
-        let lane_cells = (LANE_WIDTH_M / CELL_M).round() as usize;
+        let nx = (length_m / cell_m).round() as usize + 1;
+        let lane_cells = (LANE_WIDTH_M / cell_m).round() as usize;
         let ny = features.len() * lane_cells + 1;
-        let edge_cell = ((BACK_MARGIN_M + RUN_UP_M) / CELL_M).round() as i64;
+        let edge_cell = ((BACK_MARGIN_M + RUN_UP_M) / cell_m).round() as i64;
         let mut heights_m = vec![0.0f32; nx * ny];
         for ix in 0..nx {
             for iy in 0..ny {
                 let lane = (iy / lane_cells).min(features.len() - 1);
-                heights_m[ix * ny + iy] = features[lane].height_at_cell(ix as i64 - edge_cell);
+                heights_m[ix * ny + iy] =
+                    features[lane].height_at_cell(ix as i64 - edge_cell, cell_m);
             }
         }
         Self {
             features: features.to_vec(),
-            terrain: Terrain::from_heights(CELL_M, nx, ny, heights_m),
+            terrain: Terrain::from_heights(cell_m, nx, ny, heights_m),
         }
     }
 
@@ -183,5 +228,17 @@ mod tests {
             Feature::StairsDown { step_height_m: 0.2 }.height_m(0.1),
             -0.2
         );
+    }
+
+    #[test]
+    fn a_cell_must_divide_the_course() {
+        assert!(check_cell(CELL_M).is_ok());
+        assert!(check_cell(0.025).is_ok());
+        assert!(check_cell(0.0125).is_ok());
+        let e = check_cell(0.04).unwrap_err();
+        assert!(e.contains("tread"), "{e}");
+        assert!(check_cell(0.1).unwrap_err().contains("outside"));
+        assert!(check_cell(0.005).unwrap_err().contains("outside"));
+        assert!(check_cell(f32::NAN).is_err());
     }
 }

@@ -142,6 +142,37 @@ fn collider_surface_is_the_height_lookup_on_the_course() {
 }
 
 #[test]
+fn a_finer_course_grid_keeps_the_treads_and_draws_steeper_risers() {
+    let features = [
+        Feature::StairsUp { step_height_m: 0.2 },
+        Feature::SlopeUp { slope_deg: 30.0 },
+    ];
+    let (coarse, fine) = (Course::new(&features), Course::with_cell(&features, 0.025));
+    let edge = coarse.feature_edge_x_m();
+    assert_eq!(edge, fine.feature_edge_x_m());
+    let at = |c: &Course, lane: usize, along: f32| {
+        c.terrain()
+            .height_at_m(edge + along, c.lane_center_y_m(lane) + 0.011)
+    };
+    for k in 0..10 {
+        let mid_tread = (k as f32 + 0.5) * TREAD_M;
+        assert!(
+            (at(&coarse, 0, mid_tread) - at(&fine, 0, mid_tread)).abs() < 1e-5,
+            "tread {k}"
+        );
+        assert!(
+            (at(&coarse, 1, mid_tread) - at(&fine, 1, mid_tread)).abs() < 1e-4,
+            "ramp {k}"
+        );
+    }
+    // 3.75 cm past the second riser's foot: halfway up the 5 cm grid's ramp (76 deg), already
+    // on the tread on the 2.5 cm grid (83 deg).
+    let past_riser = TREAD_M + 0.0375;
+    assert!((at(&coarse, 0, past_riser) - 0.35).abs() < 1e-4);
+    assert!((at(&fine, 0, past_riser) - 0.4).abs() < 1e-4);
+}
+
+#[test]
 fn robots_start_at_their_spawn_pose_facing_it_and_stand() {
     let features = [
         Feature::StairsUp { step_height_m: 0.2 },

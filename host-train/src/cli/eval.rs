@@ -88,6 +88,11 @@ pub struct EvalArgs {
     /// 0.55,1.75: foot friction [0.1, 2.5] averaged with the ground's 1.0).
     #[arg(long, requires = "suite", value_delimiter = ',', num_args = 1)]
     pub contact_friction: Option<Vec<f32>>,
+    /// Cell of the suite's course height grid, m (default 0.05). The grid draws each riser
+    /// as a ramp one cell wide (a 20 cm riser leans at 76 deg on 5 cm cells, 83 deg on
+    /// 0.025); real risers, and legged_gym's, are vertical.
+    #[arg(long, requires = "suite")]
+    pub course_cell_m: Option<f32>,
     /// Environment override (`sim` or `fake`).
     #[arg(long, value_parser = ["sim", "fake"])]
     pub env: Option<String>,
@@ -625,6 +630,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             seed: args.seed,
             terrain_duration_s: args.terrain_duration_s,
             contact_friction: args.contact_friction.clone(),
+            course_cell_m: args.course_cell_m,
         });
     }
     let [checkpoint] = args.checkpoint.as_slice() else {

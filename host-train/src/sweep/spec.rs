@@ -252,6 +252,7 @@ impl Sweep {
             seed: e.seed,
             terrain_duration_s: None,
             contact_friction: None,
+            course_cell_m: None,
         }
     }
 }

@@ -63,6 +63,9 @@ pub struct Conditions {
     pub deterministic_policy: bool,
     /// Length of each trial of the terrain, step, beyond and friction tests, s.
     pub terrain_duration_s: f32,
+    /// Cell of the course's height grid, m: each riser is a ramp one cell wide
+    /// (`host_sim::course::CELL_M` by default).
+    pub course_cell_m: f32,
 }
 
 impl Conditions {
@@ -81,6 +84,7 @@ impl Conditions {
             random_pushes: false,
             deterministic_policy: true,
             terrain_duration_s: super::terrain::DURATION_S,
+            course_cell_m: host_sim::course::CELL_M,
         };
         c.set_contact_friction(SUITE_FRICTION)?;
         Ok(c)

@@ -87,6 +87,9 @@ pub struct SuiteOptions {
     /// Friction range of the feet's contacts with the ground, `[lo, hi]` (default
     /// [`batch::SUITE_FRICTION`]).
     pub contact_friction: Option<Vec<f32>>,
+    /// Cell of the course's height grid, m (default `host_sim::course::CELL_M`): finer
+    /// draws steeper risers.
+    pub course_cell_m: Option<f32>,
 }
 
 /// Checks the options; returns the protocols to run, in run order.
@@ -118,6 +121,10 @@ pub fn validate(o: &SuiteOptions) -> anyhow::Result<Vec<&'static str>> {
                 "--contact-friction must be LO,HI with 0 < LO <= HI <= {MAX_CONTACT_FRICTION}, got {mu:?}"
             );
         }
+    }
+    if let Some(cell_m) = o.course_cell_m {
+        host_sim::course::check_cell(cell_m)
+            .map_err(|e| anyhow::anyhow!("--course-cell-m: {e}"))?;
     }
     if o.checkpoints.is_empty() && o.mpc.is_none() {
         bail!("give at least one --checkpoint or --mpc");
@@ -226,6 +233,9 @@ pub fn run(o: &SuiteOptions) -> anyhow::Result<()> {
         }
         if let Some(d) = o.terrain_duration_s {
             conditions.terrain_duration_s = d;
+        }
+        if let Some(cell_m) = o.course_cell_m {
+            conditions.course_cell_m = cell_m;
         }
         let mut r = ControllerReport {
             name: c.name.clone(),
@@ -391,6 +401,7 @@ mod tests {
             seed: 1,
             terrain_duration_s: None,
             contact_friction: None,
+            course_cell_m: None,
         }
     }
 
@@ -432,6 +443,15 @@ mod tests {
         }
         let mut o = opts();
         o.contact_friction = Some(vec![0.55, 1.75]);
+        assert!(validate(&o).is_ok());
+        for bad in [0.04, 0.2, 0.0, f32::NAN] {
+            let mut o = opts();
+            o.course_cell_m = Some(bad);
+            let e = validate(&o).unwrap_err().to_string();
+            assert!(e.contains("--course-cell-m"), "{e}");
+        }
+        let mut o = opts();
+        o.course_cell_m = Some(0.025);
         assert!(validate(&o).is_ok());
         let mut o = opts();
         o.protocols = vec!["sine".into(), "push".into()];

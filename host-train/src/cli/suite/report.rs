@@ -194,7 +194,8 @@ impl SuiteReport {
                  tan 30 deg = 0.58 no robot stands on the 30 deg ramp). The environment's own \
                  random pushes are off. Fall (the simulator's termination): trunk contact with the ground or tilt \
                  beyond {} deg. Each trial of the terrain, step, beyond and friction tests lasts {} s (the \
-                 protocol's: {} s).\n",
+                 protocol's: {} s). The course's height grid has {} cm cells: each riser is a ramp one cell \
+                 wide, {:.0} deg for a 20 cm riser (real risers are vertical).\n",
                 k.seed,
                 k.trials,
                 if k.quick { ", the quick variant (fewer trials and test points)" } else { "" },
@@ -207,6 +208,8 @@ impl SuiteReport {
                 k.max_tilt_deg,
                 k.terrain_duration_s,
                 terrain::DURATION_S,
+                k.course_cell_m * 100.0,
+                (0.2 / k.course_cell_m).atan().to_degrees(),
             );
         }
         self.push_section(&mut s);

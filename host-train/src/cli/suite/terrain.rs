@@ -165,9 +165,9 @@ fn lanes_in_order(features: impl IntoIterator<Item = (Feature, [f32; 3])>) -> Ve
 /// from its lanes, and contacts on a heightfield of another size round differently: a course
 /// of the selected lanes only gave trial k another ground, at the bit level, when the terrain
 /// test ran alone than beside the step, and different outcomes on marginal stairs.
-pub fn course(quick: bool) -> Course {
+pub fn course(quick: bool, cell_m: f32) -> Course {
     let features: Vec<Feature> = all_lanes(quick).iter().map(|l| l.feature).collect();
-    Course::new(&features)
+    Course::with_cell(&features, cell_m)
 }
 
 /// The lanes of the selected tests (`terrain`, `step`), in report order (the step last).
@@ -196,7 +196,13 @@ pub fn run(
     step: bool,
 ) -> anyhow::Result<TerrainResult> {
     let lanes = selected_lanes(c.quick, terrain, step);
-    let mut results = run_lanes(cfg, controller, c, &course(c.quick), &lanes)?;
+    let mut results = run_lanes(
+        cfg,
+        controller,
+        c,
+        &course(c.quick, c.course_cell_m),
+        &lanes,
+    )?;
     let outdoor_step = if step { results.pop() } else { None };
     Ok(TerrainResult {
         duration_s: c.terrain_duration_s,
@@ -226,7 +232,8 @@ pub(super) fn run_on_own_course(
     features: &[Feature],
 ) -> anyhow::Result<Vec<FeatureResult>> {
     let lanes = lanes_in_order(features.iter().map(|&f| (f, TERRAIN_COMMAND)));
-    run_lanes(cfg, controller, c, &Course::new(features), &lanes)
+    let course = Course::with_cell(features, c.course_cell_m);
+    run_lanes(cfg, controller, c, &course, &lanes)
 }
 
 /// Walks `c.trials` robots per lane of `course` for `c.terrain_duration_s`; one result per lane.
@@ -333,7 +340,7 @@ mod tests {
             assert_eq!(step.len(), 1);
             assert_eq!(terrain[..], both[..terrain.len()]);
             assert_eq!(step[..], both[terrain.len()..]);
-            let course = course(quick);
+            let course = course(quick, host_sim::course::CELL_M);
             assert_eq!(course.features().len(), both.len());
             for l in &both {
                 assert_eq!(course.features()[l.course_lane], l.feature);

@@ -378,6 +378,7 @@ mod tests {
     use super::*;
     use crate::config::{EnvKind, PriorKind, RmaConfig, TrainConfig};
     use crate::env::make_env;
+    use crate::nn::var_values;
 
     /// A small teacher on the point-mass environment (untrained: the adaptation's mechanics
     /// do not need a good one).
@@ -400,26 +401,6 @@ mod tests {
         c
     }
 
-    fn tensors(map: &VarMap, prefix: &str) -> Vec<(String, Vec<f32>)> {
-        let data = map.data().lock().unwrap();
-        let mut out: Vec<(String, Vec<f32>)> = data
-            .iter()
-            .filter(|(k, _)| k.starts_with(prefix))
-            .map(|(k, v)| {
-                let x = v
-                    .as_tensor()
-                    .flatten_all()
-                    .unwrap()
-                    .to_vec1::<f32>()
-                    .unwrap();
-                (k.clone(), x)
-            })
-            .collect();
-        out.sort_by(|a, b| a.0.cmp(&b.0));
-        assert!(!out.is_empty(), "{prefix}");
-        out
-    }
-
     #[test]
     fn the_regression_loss_falls_and_only_the_memory_encoder_moves() {
         let mut cfg = teacher_config();
@@ -434,10 +415,10 @@ mod tests {
             .unwrap();
         let frozen: Vec<_> = ["actor.", "estimator.", "env_factor_encoder.", "critic."]
             .iter()
-            .map(|p| tensors(&ppo.params, p))
+            .map(|p| var_values(&ppo.params, p))
             .collect();
-        let norms = tensors(&ppo.stats, "normalizer.");
-        let memory_before = tensors(&ppo.params, "memory.");
+        let norms = var_values(&ppo.stats, "normalizer.");
+        let memory_before = var_values(&ppo.params, "memory.");
         let acfg = AdaptationConfig {
             steps_per_iteration: 8,
             epochs: 4,
@@ -468,10 +449,10 @@ mod tests {
             .iter()
             .zip(&frozen)
         {
-            assert_eq!(&tensors(&ppo.params, p), want, "{p} changed");
+            assert_eq!(&var_values(&ppo.params, p), want, "{p} changed");
         }
-        assert_eq!(tensors(&ppo.stats, "normalizer."), norms);
-        assert_ne!(tensors(&ppo.params, "memory."), memory_before);
+        assert_eq!(var_values(&ppo.stats, "normalizer."), norms);
+        assert_ne!(var_values(&ppo.params, "memory."), memory_before);
         assert!(!ppo.ac.teacher_latent && !ppo.cfg.rma_teacher());
     }
 

@@ -344,23 +344,22 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
         }
         let mut q = [0.0f32; 18];
         q.copy_from_slice(&amp[AMP_JOINT_POS]);
-        let clearance_m = match &play_env {
-            PlayEnv::Sim(env) => foot_clearance_m(
-                &amp[AMP_FOOT_POS],
-                base_pos_world_m,
-                base_quat_xyzw,
-                env.terrain(),
+        let (clearance_m, foot_force_n) = match &play_env {
+            PlayEnv::Sim(env) => (
+                foot_clearance_m(
+                    &amp[AMP_FOOT_POS],
+                    base_pos_world_m,
+                    base_quat_xyzw,
+                    env.terrain(),
+                ),
+                env.contacts(0).foot_force_world_n,
             ),
-            PlayEnv::Other(_) => [f32::NAN; NUM_LEGS],
+            PlayEnv::Other(_) => ([f32::NAN; NUM_LEGS], [[f32::NAN; 3]; NUM_LEGS]),
         };
         for (leg, c) in clearance_m.iter().enumerate() {
             write!(csv, ",{c}").ok();
             clearance_series[leg].push((t as f64, *c as f64));
         }
-        let foot_force_n = match &play_env {
-            PlayEnv::Sim(env) => env.contacts(0).foot_force_world_n,
-            PlayEnv::Other(_) => [[f32::NAN; 3]; NUM_LEGS],
-        };
         for f in foot_force_n {
             write!(csv, ",{},{}", f[0].hypot(f[1]), f[2]).ok();
         }

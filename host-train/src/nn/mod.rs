@@ -8,6 +8,24 @@ pub mod normalizer;
 pub mod seeded_init;
 pub(crate) mod simd;
 
+/// The values of `map`'s variables whose names start with `prefix`, sorted by name (tests
+/// compare networks with it; panics when none match).
+#[cfg(test)]
+pub(crate) fn var_values(map: &candle_nn::VarMap, prefix: &str) -> Vec<(String, Vec<f32>)> {
+    let data = map.data().lock().unwrap();
+    let mut out: Vec<(String, Vec<f32>)> = data
+        .iter()
+        .filter(|(k, _)| k.starts_with(prefix))
+        .map(|(k, v)| {
+            let x = v.as_tensor().flatten_all().unwrap().to_vec1::<f32>();
+            (k.clone(), x.unwrap())
+        })
+        .collect();
+    out.sort_by(|a, b| a.0.cmp(&b.0));
+    assert!(!out.is_empty(), "no variable under `{prefix}`");
+    out
+}
+
 /// Helpers for the tests that hold a fused operation to the bits of the operations it fuses.
 #[cfg(test)]
 pub(crate) mod bit_exact {

@@ -119,21 +119,7 @@ mod tests {
     use crate::nn::mlp::Mlp;
 
     fn weights(map: &VarMap) -> Vec<(String, Vec<f32>)> {
-        let data = map.data().lock().unwrap();
-        let mut out: Vec<_> = data
-            .iter()
-            .map(|(k, v)| {
-                let t = v
-                    .as_tensor()
-                    .flatten_all()
-                    .unwrap()
-                    .to_vec1::<f32>()
-                    .unwrap();
-                (k.clone(), t)
-            })
-            .collect();
-        out.sort_by(|a, b| a.0.cmp(&b.0));
-        out
+        crate::nn::var_values(map, "")
     }
 
     fn build(seed: u64, order: &[&str]) -> VarMap {
